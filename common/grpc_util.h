@@ -1,0 +1,61 @@
+#ifndef IMCA_COMMON_GRPC_UTIL_H_
+#define IMCA_COMMON_GRPC_UTIL_H_
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace imca {
+
+// The one place where absl::Status and grpc::Status are converted.
+grpc::Status ToGrpcStatus(const absl::Status& status);
+absl::Status FromGrpcStatus(const grpc::Status& status);
+
+// Installs SIGINT/SIGTERM handlers that only set an atomic flag.
+void InstallShutdownSignalHandlers();
+// True once SIGINT or SIGTERM arrived (or RequestShutdown was called).
+bool ShutdownRequested();
+void RequestShutdown();
+
+// Builds and starts a gRPC server on `listen` ("host:port"; port 0 picks a
+// free one) with `services`, grpc.health.v1 health checking and server
+// reflection. Sets *bound_port. Errors: UNAVAILABLE naming the address when it
+// cannot be bound (e.g. the port is in use).
+absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(
+    const std::string& listen, const std::vector<grpc::Service*>& services, int* bound_port);
+
+// A client channel with keepalive settings suitable for long-lived streams and
+// message limits that fit the largest unrolls.
+std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target);
+
+// Deadline `timeout` from now, for ClientContext::set_deadline.
+inline std::chrono::system_clock::time_point DeadlineIn(std::chrono::milliseconds timeout) {
+  return std::chrono::system_clock::now() + timeout;
+}
+
+// Exponential backoff with full jitter for reconnect loops: 50 ms doubling to
+// a 5 s cap. Not thread-safe.
+class Backoff {
+ public:
+  // Sleeps for the next delay (interruptible by shutdown, checked every 50 ms).
+  void Wait();
+  void Reset() { attempt_ = 0; }
+
+ private:
+  int attempt_ = 0;
+  uint64_t state_ = 0x1234567;
+};
+
+// Largest message the servers and clients accept.
+inline constexpr int kMaxMessageBytes = 64 << 20;
+
+}  // namespace imca
+
+#endif  // IMCA_COMMON_GRPC_UTIL_H_

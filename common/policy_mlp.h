@@ -1,0 +1,44 @@
+#ifndef IMCA_COMMON_POLICY_MLP_H_
+#define IMCA_COMMON_POLICY_MLP_H_
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "absl/status/statusor.h"
+#include "imca/v1/learner_service.pb.h"
+
+namespace imca {
+
+// Evaluates a published "mlp_tanh" Policy (see learner_service.proto) with
+// Eigen, so actors need no LibTorch. Not thread-safe (scratch buffers are
+// reused between calls to avoid allocation); copy it per thread.
+class PolicyMlp {
+ public:
+  using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+  // Errors: INVALID_ARGUMENT when the architecture is unknown, a tensor is
+  // missing or shapes do not chain from obs_dim to num_actions.
+  static absl::StatusOr<PolicyMlp> FromProto(const v1::Policy& policy);
+
+  int64_t version() const { return version_; }
+  int obs_dim() const { return obs_dim_; }
+  int num_actions() const { return num_actions_; }
+
+  // obs: [batch][obs_dim] row-major; writes softmax probabilities
+  // [batch][num_actions] into probs.
+  void Probabilities(const float* obs, int batch, float* probs);
+
+ private:
+  int64_t version_ = 0;
+  int obs_dim_ = 0;
+  int num_actions_ = 0;
+  std::vector<Matrix> weights_;  // [out, in]
+  std::vector<Eigen::RowVectorXf> biases_;
+  std::vector<Matrix> scratch_;
+};
+
+}  // namespace imca
+
+#endif  // IMCA_COMMON_POLICY_MLP_H_

@@ -1,0 +1,60 @@
+#include "common/policy_mlp.h"
+
+#include <cmath>
+
+#include "gtest/gtest.h"
+
+namespace imca {
+namespace {
+
+void AddTensor(v1::Policy* policy, const std::string& name, std::vector<int64_t> shape,
+               std::vector<float> data) {
+  v1::NamedTensor* t = policy->add_tensors();
+  t->set_name(name);
+  for (int64_t d : shape) t->add_shape(d);
+  for (float x : data) t->add_data(x);
+}
+
+v1::Policy TwoLayer() {
+  v1::Policy policy;
+  policy.set_version(3);
+  policy.set_architecture("mlp_tanh");
+  policy.set_obs_dim(2);
+  policy.set_num_actions(2);
+  AddTensor(&policy, "policy.0.weight", {2, 2}, {1, 0, 0, 2});  // h = tanh(x0, 2 x1).
+  AddTensor(&policy, "policy.0.bias", {2}, {0, 0});
+  AddTensor(&policy, "policy.1.weight", {2, 2}, {1, 0, 0, 1});  // logits = h + (0, 1).
+  AddTensor(&policy, "policy.1.bias", {2}, {0, 1});
+  return policy;
+}
+
+TEST(PolicyMlpTest, MatchesHandComputedSoftmax) {
+  auto mlp = PolicyMlp::FromProto(TwoLayer());
+  ASSERT_TRUE(mlp.ok()) << mlp.status();
+  EXPECT_EQ(mlp->version(), 3);
+  const float obs[4] = {0.5f, 0.25f, 0.0f, 0.0f};
+  float probs[4];
+  mlp->Probabilities(obs, 2, probs);
+  const double l0 = std::tanh(0.5), l1 = std::tanh(0.5) + 1.0;
+  EXPECT_NEAR(probs[0], std::exp(l0) / (std::exp(l0) + std::exp(l1)), 1e-6);
+  EXPECT_NEAR(probs[0] + probs[1], 1.0, 1e-6);
+  EXPECT_NEAR(probs[2], 1.0 / (1.0 + std::exp(1.0)), 1e-6);
+}
+
+TEST(PolicyMlpTest, RejectsBrokenPolicies) {
+  v1::Policy policy = TwoLayer();
+  policy.set_architecture("transformer");
+  EXPECT_EQ(PolicyMlp::FromProto(policy).status().code(), absl::StatusCode::kInvalidArgument);
+  policy = TwoLayer();
+  policy.set_num_actions(3);
+  EXPECT_EQ(PolicyMlp::FromProto(policy).status().code(), absl::StatusCode::kInvalidArgument);
+  policy = TwoLayer();
+  policy.mutable_tensors(0)->mutable_data()->RemoveLast();
+  EXPECT_EQ(PolicyMlp::FromProto(policy).status().code(), absl::StatusCode::kInvalidArgument);
+  policy = TwoLayer();
+  policy.mutable_tensors()->DeleteSubrange(3, 1);  // policy.1.bias missing.
+  EXPECT_EQ(PolicyMlp::FromProto(policy).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace imca

@@ -1,0 +1,30 @@
+#ifndef IMCA_COMMON_UNROLL_CHECK_H_
+#define IMCA_COMMON_UNROLL_CHECK_H_
+
+#include "absl/status/status.h"
+#include "common/env.h"
+#include "imca/v1/unroll.pb.h"
+
+namespace imca {
+
+// What a receiver of an Unroll needs from it.
+struct UnrollNeeds {
+  bool rewards = false;            // rewards, terminated, truncated, log-probs.
+  bool intrinsic_rewards = false;  // intrinsic_rewards (learner side).
+};
+
+// Largest number of transitions (T*E) one message may carry.
+inline constexpr int kMaxTransitions = 65536;
+
+// Checks an Unroll against the scenario it claims to come from: scenario name,
+// agent/action counts and state size; T, E >= 1 and T*E <= kMaxTransitions;
+// every packed field's length; actions in [0, A); every state a valid state of
+// the scenario; action_probs finite, in [0,1] and each row summing to 1 within
+// 1e-3. Returns INVALID_ARGUMENT whose message names the field and element
+// (e.g. "unroll.actions[12]: 7 not in [0, 5)"). Pure; thread-safe.
+absl::Status ValidateUnroll(const v1::Unroll& unroll, const env::Scenario& scenario,
+                            const UnrollNeeds& needs);
+
+}  // namespace imca
+
+#endif  // IMCA_COMMON_UNROLL_CHECK_H_

@@ -1,0 +1,50 @@
+#include "common/vec_env.h"
+
+#include <cstring>
+
+namespace imca::env {
+
+VecEnv::VecEnv(const Scenario* scenario, int num_envs, uint64_t seed)
+    : scenario_(scenario),
+      num_envs_(num_envs),
+      n_(scenario->num_agents()),
+      k_(scenario->state_size()),
+      states_(static_cast<size_t>(num_envs) * k_),
+      episode_count_(num_envs, 0),
+      returns_(num_envs, 0.0f) {
+  rngs_.reserve(num_envs);
+  for (int e = 0; e < num_envs; ++e) {
+    uint64_t mix = seed ^ (0x5851f42d4c957f2dULL * (e + 1));
+    rngs_.emplace_back(Rng::SplitMix64(mix));
+    scenario_->Reset(rngs_[e], &states_[static_cast<size_t>(e) * k_]);
+  }
+  finished_.reserve(num_envs * 2);
+}
+
+void VecEnv::Step(const int32_t* actions, float* rewards, bool* terminated, bool* truncated,
+                  int32_t* reached_states) {
+  for (int e = 0; e < num_envs_; ++e) {
+    int32_t* state = &states_[static_cast<size_t>(e) * k_];
+    float* r = rewards + static_cast<size_t>(e) * n_;
+    const StepOutcome outcome = scenario_->Step(state, actions + static_cast<size_t>(e) * n_, rngs_[e], r);
+    float sum = 0;
+    for (int a = 0; a < n_; ++a) sum += r[a];
+    returns_[e] += sum / n_;
+    terminated[e] = outcome.terminated;
+    truncated[e] = outcome.truncated;
+    std::memcpy(reached_states + static_cast<size_t>(e) * k_, state, sizeof(int32_t) * k_);
+    if (outcome.terminated || outcome.truncated) {
+      finished_.push_back({returns_[e], state[1 + n_], outcome.success});
+      returns_[e] = 0;
+      ++episode_count_[e];
+      scenario_->Reset(rngs_[e], state);
+    }
+  }
+}
+
+void VecEnv::TakeFinished(std::vector<EpisodeEnd>* out) {
+  out->insert(out->end(), finished_.begin(), finished_.end());
+  finished_.clear();
+}
+
+}  // namespace imca::env

@@ -1,0 +1,65 @@
+#ifndef IMCA_REWARD_SERVER_COUNT_SCORER_H_
+#define IMCA_REWARD_SERVER_COUNT_SCORER_H_
+
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/synchronization/mutex.h"
+#include "common/env.h"
+#include "common/rng.h"
+#include "reward_server/count_table.h"
+#include "reward_server/credit.h"
+#include "reward_server/joint_key.h"
+#include "reward_server/scorer.h"
+
+namespace imca::reward {
+
+// Count-based novelty N(x) = 1 / sqrt(C_before(x) + 1) with the credit modes
+// of SPEC section 5 (docs/credit.md works an example):
+//   none:        every output 0, no table touched.
+//   shared:      r_i^a = R_i = beta * N(S, U).
+//   independent: r_i^a = beta * N_a(s^a, u^a) from per-agent tables;
+//                R_i is reported as the team sum.
+//   imca:        r^a = N(S,U) - sum_u' pi^a(u') N(S, (U^-a, u')),
+//                p^a = softmax(r / tau), r_i^a = p^a * R_i.
+// shares always report p^a = r_i^a / sum_b r_i^b (1/n when the sum is 0).
+// Permutation modes map keys: canonical sorts the agents' pairs by cell for
+// every lookup and increment; random increments the key of a random
+// permutation of the pairs (lookups use agent order), as the paper's 4.3.
+// For independent credit, permutation other than off makes homogeneous agents
+// share one local table. Thread-safe (one mutex).
+class CountScorer final : public Scorer {
+ public:
+  CountScorer(const env::Scenario& scenario, const ScorerConfig& config);
+
+  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  void FillStats(v1::RewardStats* stats) const override;
+  absl::Status Save(const std::string& path) const override;
+  absl::Status Load(const std::string& path) override;
+
+  // Current count of the joint pair (state, actions) under this scorer's key
+  // mapping (canonical order if configured, agent order otherwise).
+  uint32_t JointCount(const int32_t* state, const int32_t* actions) const;
+
+ private:
+  void ScoreOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
+                float* global, float* contributions, float* shares, float* agent_rewards)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  void LookupOrder(const int32_t* state, int* order) const;
+  std::string ConfigTag() const;
+
+  const int n_;
+  const int num_actions_;
+  const ScorerConfig config_;
+  const JointKeyCodec codec_;
+
+  mutable absl::Mutex mu_;
+  CountTable global_ ABSL_GUARDED_BY(mu_);
+  CountTable local_ ABSL_GUARDED_BY(mu_);
+  Rng rng_ ABSL_GUARDED_BY(mu_);
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_COUNT_SCORER_H_

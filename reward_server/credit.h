@@ -1,0 +1,37 @@
+#ifndef IMCA_REWARD_SERVER_CREDIT_H_
+#define IMCA_REWARD_SERVER_CREDIT_H_
+
+#include <cstdint>
+#include <string>
+#include "absl/strings/string_view.h"
+
+#include "absl/status/statusor.h"
+
+namespace imca::reward {
+
+// How a global bonus becomes per-agent bonuses (SPEC section 5).
+enum class Credit { kNone, kIndependent, kShared, kImca };
+// How homogeneous agents' identities enter keys (SPEC section 5, paper 4.3).
+enum class Permutation { kOff, kRandom, kCanonical };
+
+// Parse "none|independent|shared|imca" and "off|random|canonical".
+// Errors: INVALID_ARGUMENT naming the value and the choices.
+absl::StatusOr<Credit> ParseCredit(absl::string_view name);
+absl::StatusOr<Permutation> ParsePermutation(absl::string_view name);
+absl::string_view CreditName(Credit credit);
+absl::string_view PermutationName(Permutation permutation);
+
+struct ScorerConfig {
+  Credit credit = Credit::kImca;
+  Permutation permutation = Permutation::kOff;
+  double beta = 1.0;         // Coefficient of the global bonus.
+  double temperature = 1.0;  // tau of the softmax over contributions.
+  uint64_t seed = 1;         // For the random permutation mode.
+};
+
+// p^a = softmax_a(r^a / tau) over n contributions (numerically stable).
+void SoftmaxShares(const float* contributions, int n, double temperature, float* shares);
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_CREDIT_H_

@@ -1,0 +1,89 @@
+#include "reward_server/reward_service.h"
+
+#include <sys/stat.h>
+
+#include "absl/strings/str_cat.h"
+#include "common/grpc_util.h"
+#include "common/unroll_check.h"
+
+namespace imca::reward {
+
+RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scorer,
+                                     std::string reward_kind, ScorerConfig config,
+                                     std::string snapshot_path)
+    : scenario_(scenario),
+      scorer_(scorer),
+      reward_kind_(std::move(reward_kind)),
+      config_(config),
+      snapshot_path_(std::move(snapshot_path)) {}
+
+grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreRequest* request,
+                                      v1::ScoreResponse* response) {
+  if (!accepting_.load()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "reward server is shutting down");
+  if (!request->has_unroll()) {
+    ++requests_rejected_;
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "unroll is missing");
+  }
+  const v1::Unroll& unroll = request->unroll();
+  if (absl::Status valid = ValidateUnroll(unroll, *scenario_, {}); !valid.ok()) {
+    ++requests_rejected_;
+    return ToGrpcStatus(valid);
+  }
+  const int64_t count = int64_t{unroll.length()} * unroll.num_envs();
+  const int n = unroll.num_agents();
+  response->set_num_transitions(static_cast<int32_t>(count));
+  response->set_num_agents(n);
+  response->mutable_global_rewards()->Resize(count, 0.0f);
+  response->mutable_contributions()->Resize(count * n, 0.0f);
+  response->mutable_shares()->Resize(count * n, 0.0f);
+  response->mutable_agent_rewards()->Resize(count * n, 0.0f);
+  TransitionBatch batch;
+  batch.size = count;
+  batch.states = unroll.states().data();
+  batch.next_states = unroll.next_states().data();
+  batch.actions = unroll.actions().data();
+  batch.action_probs = unroll.action_probs().data();
+  batch.episode_ids = unroll.episode_ids().data();
+  ScoreOutput out;
+  out.global_rewards = response->mutable_global_rewards()->mutable_data();
+  out.contributions = response->mutable_contributions()->mutable_data();
+  out.shares = response->mutable_shares()->mutable_data();
+  out.agent_rewards = response->mutable_agent_rewards()->mutable_data();
+  if (absl::Status status = scorer_->Score(batch, request->dry_run(), out); !status.ok()) {
+    return ToGrpcStatus(status);
+  }
+  if (!request->dry_run()) transitions_scored_ += count;
+  ++requests_served_;
+  return grpc::Status::OK;
+}
+
+grpc::Status RewardServiceImpl::GetStats(grpc::ServerContext*, const v1::GetStatsRequest*,
+                                         v1::RewardStats* response) {
+  response->set_reward_kind(reward_kind_);
+  response->set_credit(std::string(CreditName(config_.credit)));
+  response->set_permutation(std::string(PermutationName(config_.permutation)));
+  response->set_beta(config_.beta);
+  response->set_temperature(config_.temperature);
+  response->set_scenario(std::string(scenario_->name()));
+  response->set_num_agents(scenario_->num_agents());
+  response->set_transitions_scored(transitions_scored_.load());
+  response->set_requests_served(requests_served_.load());
+  response->set_requests_rejected(requests_rejected_.load());
+  scorer_->FillStats(response);
+  return grpc::Status::OK;
+}
+
+grpc::Status RewardServiceImpl::Snapshot(grpc::ServerContext*, const v1::SnapshotRequest*,
+                                         v1::SnapshotResponse* response) {
+  if (snapshot_path_.empty()) {
+    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                        "the server was started without --snapshot");
+  }
+  if (absl::Status status = scorer_->Save(snapshot_path_); !status.ok()) return ToGrpcStatus(status);
+  struct stat info {};
+  response->set_path(snapshot_path_);
+  if (stat(snapshot_path_.c_str(), &info) == 0) response->set_bytes(info.st_size);
+  return grpc::Status::OK;
+}
+
+}  // namespace imca::reward

@@ -1,0 +1,49 @@
+#ifndef IMCA_REWARD_SERVER_REWARD_SERVICE_H_
+#define IMCA_REWARD_SERVER_REWARD_SERVICE_H_
+
+#include <atomic>
+#include <memory>
+#include <string>
+
+#include "common/env.h"
+#include "imca/v1/reward_service.grpc.pb.h"
+#include "reward_server/credit.h"
+#include "reward_server/scorer.h"
+
+namespace imca::reward {
+
+// The gRPC face of a Scorer: validates each request completely (names the bad
+// field in INVALID_ARGUMENT) before the scorer sees it, so a rejected request
+// changes nothing. Thread-safe.
+class RewardServiceImpl final : public v1::RewardService::Service {
+ public:
+  // `scenario` and `scorer` must outlive the service. `snapshot_path` may be
+  // empty (Snapshot then answers FAILED_PRECONDITION).
+  RewardServiceImpl(const env::Scenario* scenario, Scorer* scorer, std::string reward_kind,
+                    ScorerConfig config, std::string snapshot_path);
+
+  grpc::Status Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
+                     v1::ScoreResponse* response) override;
+  grpc::Status GetStats(grpc::ServerContext* context, const v1::GetStatsRequest* request,
+                        v1::RewardStats* response) override;
+  grpc::Status Snapshot(grpc::ServerContext* context, const v1::SnapshotRequest* request,
+                        v1::SnapshotResponse* response) override;
+
+  // After this, Score answers UNAVAILABLE (used while draining at shutdown).
+  void StopAccepting() { accepting_.store(false); }
+
+ private:
+  const env::Scenario* scenario_;
+  Scorer* scorer_;
+  const std::string reward_kind_;
+  const ScorerConfig config_;
+  const std::string snapshot_path_;
+  std::atomic<bool> accepting_{true};
+  std::atomic<int64_t> transitions_scored_{0};
+  std::atomic<int64_t> requests_served_{0};
+  std::atomic<int64_t> requests_rejected_{0};
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_REWARD_SERVICE_H_

@@ -1,0 +1,147 @@
+// RewardService over a real loopback gRPC channel: every bad field gives
+// INVALID_ARGUMENT naming it, and a rejected request changes no count.
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "common/env.h"
+#include "common/grpc_util.h"
+#include "common/test_unrolls.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "imca/v1/reward_service.grpc.pb.h"
+#include "reward_server/count_scorer.h"
+#include "reward_server/reward_service.h"
+
+namespace imca::reward {
+namespace {
+
+using ::testing::HasSubstr;
+
+class RewardServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+    ASSERT_TRUE(scenario.ok()) << scenario.status();
+    scenario_ = *std::move(scenario);
+    config_.credit = Credit::kImca;
+    scorer_ = std::make_unique<CountScorer>(*scenario_, config_);
+    service_ = std::make_unique<RewardServiceImpl>(scenario_.get(), scorer_.get(), "count", config_,
+                                                   snapshot_);
+    int port = 0;
+    auto server = StartServer("127.0.0.1:0", {service_.get()}, &port);
+    ASSERT_TRUE(server.ok()) << server.status();
+    server_ = *std::move(server);
+    stub_ = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+  }
+  void TearDown() override { server_->Shutdown(); }
+
+  grpc::Status Score(const v1::ScoreRequest& request, v1::ScoreResponse* response) {
+    grpc::ClientContext context;
+    context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+    return stub_->Score(&context, request, response);
+  }
+
+  v1::RewardStats Stats() {
+    grpc::ClientContext context;
+    v1::RewardStats stats;
+    EXPECT_TRUE(stub_->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+    return stats;
+  }
+
+  v1::ScoreRequest Valid() {
+    v1::ScoreRequest request;
+    *request.mutable_unroll() = testing::RandomUnroll(*scenario_, 8, 4, 11);
+    return request;
+  }
+
+  std::unique_ptr<env::Scenario> scenario_;
+  ScorerConfig config_;
+  std::string snapshot_;
+  std::unique_ptr<CountScorer> scorer_;
+  std::unique_ptr<RewardServiceImpl> service_;
+  std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<v1::RewardService::Stub> stub_;
+};
+
+TEST_F(RewardServiceTest, ScoresAValidUnroll) {
+  v1::ScoreResponse response;
+  ASSERT_TRUE(Score(Valid(), &response).ok());
+  EXPECT_EQ(response.num_transitions(), 32);
+  EXPECT_EQ(response.agent_rewards_size(), 64);
+  EXPECT_EQ(response.shares_size(), 64);
+  for (int i = 0; i < 32; ++i) {
+    EXPECT_GT(response.global_rewards(i), 0.0f);
+    EXPECT_NEAR(response.shares(2 * i) + response.shares(2 * i + 1), 1.0f, 1e-5);
+    EXPECT_NEAR(response.agent_rewards(2 * i) + response.agent_rewards(2 * i + 1),
+                response.global_rewards(i), 1e-5);
+  }
+  const v1::RewardStats stats = Stats();
+  EXPECT_EQ(stats.transitions_scored(), 32);
+  EXPECT_GT(stats.distinct_keys(), 0);
+  EXPECT_EQ(stats.credit(), "imca");
+}
+
+TEST_F(RewardServiceTest, DryRunLeavesCountsAlone) {
+  v1::ScoreRequest request = Valid();
+  request.set_dry_run(true);
+  v1::ScoreResponse response;
+  ASSERT_TRUE(Score(request, &response).ok());
+  EXPECT_EQ(Stats().distinct_keys(), 0);
+}
+
+struct BadCase {
+  const char* name;
+  std::function<void(v1::Unroll*)> corrupt;
+  const char* field;
+};
+
+TEST_F(RewardServiceTest, EveryBadFieldIsInvalidArgumentAndChangesNothing) {
+  const BadCase cases[] = {
+      {"scenario", [](v1::Unroll* u) { u->set_scenario("chess"); }, "unroll.scenario"},
+      {"agents", [](v1::Unroll* u) { u->set_num_agents(3); }, "unroll.num_agents"},
+      {"actions count", [](v1::Unroll* u) { u->set_num_actions(4); }, "unroll.num_actions"},
+      {"state size", [](v1::Unroll* u) { u->set_state_size(5); }, "unroll.state_size"},
+      {"length", [](v1::Unroll* u) { u->set_length(0); }, "unroll.length"},
+      {"envs", [](v1::Unroll* u) { u->set_num_envs(-1); }, "unroll.num_envs"},
+      {"too big", [](v1::Unroll* u) { u->set_length(100000); }, "exceeds the limit"},
+      {"states size", [](v1::Unroll* u) { u->mutable_states()->RemoveLast(); }, "unroll.states"},
+      {"action range", [](v1::Unroll* u) { u->set_actions(5, 7); }, "unroll.actions[5]"},
+      {"negative action", [](v1::Unroll* u) { u->set_actions(0, -1); }, "unroll.actions[0]"},
+      {"cell on wall", [](v1::Unroll* u) { u->set_states(4 * 3 + 1, 0); }, "unroll.states[3]"},
+      {"cell off map", [](v1::Unroll* u) { u->set_next_states(2, 100000); }, "unroll.next_states[0]"},
+      {"nan prob", [](v1::Unroll* u) { u->set_action_probs(3, std::nanf("")); }, "unroll.action_probs[3]"},
+      {"row sum", [](v1::Unroll* u) { u->set_action_probs(0, 0.5f); }, "unroll.action_probs row 0"},
+      {"episode ids", [](v1::Unroll* u) { u->clear_episode_ids(); }, "unroll.episode_ids"},
+  };
+  for (const BadCase& bad : cases) {
+    v1::ScoreRequest request = Valid();
+    bad.corrupt(request.mutable_unroll());
+    v1::ScoreResponse response;
+    const grpc::Status status = Score(request, &response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << bad.name;
+    EXPECT_THAT(status.error_message(), HasSubstr(bad.field)) << bad.name;
+  }
+  v1::ScoreResponse response;
+  EXPECT_EQ(Score(v1::ScoreRequest(), &response).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const v1::RewardStats stats = Stats();
+  EXPECT_EQ(stats.distinct_keys(), 0);
+  EXPECT_EQ(stats.transitions_scored(), 0);
+  EXPECT_EQ(stats.requests_rejected(), static_cast<int64_t>(std::size(cases)) + 1);
+}
+
+TEST_F(RewardServiceTest, SnapshotWithoutPathIsFailedPrecondition) {
+  grpc::ClientContext context;
+  v1::SnapshotResponse response;
+  EXPECT_EQ(stub_->Snapshot(&context, v1::SnapshotRequest(), &response).error_code(),
+            grpc::StatusCode::FAILED_PRECONDITION);
+}
+
+TEST_F(RewardServiceTest, StoppedServiceIsUnavailable) {
+  service_->StopAccepting();
+  v1::ScoreResponse response;
+  EXPECT_EQ(Score(Valid(), &response).error_code(), grpc::StatusCode::UNAVAILABLE);
+}
+
+}  // namespace
+}  // namespace imca::reward

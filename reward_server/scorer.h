@@ -1,0 +1,54 @@
+#ifndef IMCA_REWARD_SERVER_SCORER_H_
+#define IMCA_REWARD_SERVER_SCORER_H_
+
+#include <cstdint>
+#include <string>
+
+#include "absl/status/status.h"
+#include "imca/v1/reward_service.pb.h"
+
+namespace imca::reward {
+
+// A read-only view of N transitions, already validated against the scenario
+// (see common/unroll_check.h). Row-major arrays.
+struct TransitionBatch {
+  int64_t size = 0;                     // N
+  const int32_t* states = nullptr;      // [N][K], S_t
+  const int32_t* next_states = nullptr; // [N][K], S_{t+1} (the reached state)
+  const int32_t* actions = nullptr;     // [N][n]
+  const float* action_probs = nullptr;  // [N][n][A], behaviour pi^a(.|o^a)
+  const int64_t* episode_ids = nullptr; // [N]
+};
+
+// Where a scorer writes its results; every array is preallocated by the caller.
+struct ScoreOutput {
+  float* global_rewards = nullptr;  // [N], R_i
+  float* contributions = nullptr;   // [N][n], r^a (count, RND) or d^a (SF)
+  float* shares = nullptr;          // [N][n], p^a
+  float* agent_rewards = nullptr;   // [N][n], r_i^a
+};
+
+// A global intrinsic reward with credit assignment (one per reward kind).
+// Implementations are thread-safe: concurrent Score calls are serialised, and
+// a batch's transitions are processed in order, each seeing the updates of the
+// ones before it.
+class Scorer {
+ public:
+  virtual ~Scorer() = default;
+
+  // Scores every transition; unless dry_run, updates counts/models. Does not
+  // fail on validated input; returns INTERNAL on an internal failure, with no
+  // state changed.
+  virtual absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) = 0;
+  // Fills the kind-specific fields of `stats`.
+  virtual void FillStats(v1::RewardStats* stats) const = 0;
+  // Writes all learned state to `path` atomically (tmp file + rename).
+  virtual absl::Status Save(const std::string& path) const = 0;
+  // Replaces all learned state with the file's. Errors: NOT_FOUND, DATA_LOSS,
+  // FAILED_PRECONDITION if the file was written under another configuration.
+  virtual absl::Status Load(const std::string& path) = 0;
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_SCORER_H_
