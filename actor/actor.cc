@@ -1,0 +1,226 @@
+#include "actor/actor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "absl/strings/str_cat.h"
+#include "common/grpc_util.h"
+
+namespace imca::actor {
+
+Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
+             std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server)
+    : scenario_(scenario),
+      config_(config),
+      featurizer_(*scenario),
+      learner_(v1::LearnerService::NewStub(learner)),
+      reward_(v1::RewardService::NewStub(reward_server)),
+      envs_(scenario, config.num_envs, config.seed),
+      eval_envs_(scenario, std::max(config.eval_envs, 1), config.seed ^ 0xe7a1e7a1e7a1ULL),
+      rng_(config.seed * 7919 + 17) {
+  const int rows = std::max(config.num_envs, config.eval_envs) * scenario->num_agents();
+  const int envs = std::max(config.num_envs, config.eval_envs);
+  obs_.resize(static_cast<size_t>(rows) * featurizer_.obs_dim());
+  probs_.resize(static_cast<size_t>(rows) * scenario->num_actions());
+  actions_.resize(rows);
+  log_probs_.resize(rows);
+  rewards_.resize(rows);
+  reached_.resize(static_cast<size_t>(envs) * scenario->state_size());
+  terminated_.reset(new bool[envs]);
+  truncated_.reset(new bool[envs]);
+}
+
+bool Actor::RefreshPolicy(bool wait) {
+  Backoff backoff;
+  while (!ShutdownRequested()) {
+    grpc::ClientContext context;
+    context.set_deadline(DeadlineIn(config_.rpc_timeout));
+    v1::GetPolicyRequest request;
+    request.set_min_version(policy_.has_value() ? policy_->version() + 1 : 0);
+    v1::Policy policy;
+    const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
+    if (status.ok()) {
+      if (policy.tensors_size() == 0) return true;  // Not modified.
+      absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
+      if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() ||
+          mlp->num_actions() != scenario_->num_actions()) {
+        policy_error_ = absl::InternalError(absl::StrCat(
+            "learner's policy does not fit ", scenario_->name(), ": ",
+            mlp.ok() ? "observation or action size differs" : mlp.status().message()));
+        return false;
+      }
+      policy_ = *std::move(mlp);
+      return true;
+    }
+    if (!wait) return false;
+    backoff.Wait();
+  }
+  return false;
+}
+
+void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
+                          float* probs) {
+  const int n = scenario_->num_agents(), k = scenario_->state_size(), a_count = scenario_->num_actions();
+  const int obs_dim = featurizer_.obs_dim();
+  for (int e = 0; e < num_envs; ++e) {
+    for (int a = 0; a < n; ++a) {
+      featurizer_.Observe(states + e * k, a, &obs_[static_cast<size_t>(e * n + a) * obs_dim]);
+    }
+  }
+  policy_->Probabilities(obs_.data(), num_envs * n, probs);
+  for (int row = 0; row < num_envs * n; ++row) {
+    const float* p = probs + row * a_count;
+    const double x = rng_.UniformDouble();
+    double cumulative = 0;
+    int u = a_count - 1;
+    for (int j = 0; j < a_count; ++j) {
+      cumulative += p[j];
+      if (x < cumulative) {
+        u = j;
+        break;
+      }
+    }
+    actions[row] = u;
+    log_probs[row] = std::log(std::max(p[u], 1e-12f));
+  }
+}
+
+void Actor::Rollout(v1::Unroll* u) {
+  const int E = config_.num_envs, T = config_.unroll_length;
+  const int n = scenario_->num_agents(), k = scenario_->state_size(), a_count = scenario_->num_actions();
+  u->set_scenario(std::string(scenario_->name()));
+  u->set_actor_id(config_.actor_id);
+  u->set_policy_version(policy_->version());
+  u->set_length(T);
+  u->set_num_envs(E);
+  u->set_num_agents(n);
+  u->set_num_actions(a_count);
+  u->set_state_size(k);
+  u->mutable_states()->Reserve((T + 1) * E * k);
+  u->mutable_next_states()->Reserve(T * E * k);
+  u->mutable_actions()->Reserve(T * E * n);
+  u->mutable_action_probs()->Reserve(T * E * n * a_count);
+  for (int t = 0; t < T; ++t) {
+    u->mutable_states()->Add(envs_.states(), envs_.states() + E * k);
+    for (int e = 0; e < E; ++e) u->add_episode_ids(envs_.episode_id(e));
+    SampleActions(envs_.states(), E, actions_.data(), log_probs_.data(), probs_.data());
+    u->mutable_actions()->Add(actions_.begin(), actions_.begin() + E * n);
+    u->mutable_behaviour_log_probs()->Add(log_probs_.begin(), log_probs_.begin() + E * n);
+    u->mutable_action_probs()->Add(probs_.begin(), probs_.begin() + E * n * a_count);
+    envs_.Step(actions_.data(), rewards_.data(), terminated_.get(), truncated_.get(), reached_.data());
+    u->mutable_rewards()->Add(rewards_.begin(), rewards_.begin() + E * n);
+    u->mutable_next_states()->Add(reached_.begin(), reached_.begin() + E * k);
+    for (int e = 0; e < E; ++e) {
+      u->add_terminated(terminated_[e]);
+      u->add_truncated(truncated_[e]);
+    }
+    if (config_.eval_envs > 0) {
+      const int V = config_.eval_envs;
+      SampleActions(eval_envs_.states(), V, actions_.data(), log_probs_.data(), probs_.data());
+      eval_envs_.Step(actions_.data(), rewards_.data(), terminated_.get(), truncated_.get(), reached_.data());
+    }
+  }
+  u->mutable_states()->Add(envs_.states(), envs_.states() + E * k);
+  finished_.clear();
+  envs_.TakeFinished(&finished_);
+  for (const env::EpisodeEnd& end : finished_) {
+    u->add_episode_returns(end.team_return);
+    u->add_episode_success(end.success);
+    u->add_episode_lengths(end.length);
+  }
+  finished_.clear();
+  eval_envs_.TakeFinished(&finished_);
+  for (const env::EpisodeEnd& end : finished_) {
+    u->add_eval_returns(end.team_return);
+    u->add_eval_success(end.success);
+  }
+}
+
+absl::Status Actor::Score(v1::Unroll* unroll) {
+  v1::ScoreRequest request;
+  // The reward server reads states, next states, actions, probabilities and
+  // episode ids; swap the unroll in and out instead of copying it.
+  request.mutable_unroll()->Swap(unroll);
+  grpc::ClientContext context;
+  context.set_deadline(DeadlineIn(config_.rpc_timeout));
+  v1::ScoreResponse response;
+  const grpc::Status status = reward_->Score(&context, request, &response);
+  unroll->Swap(request.mutable_unroll());
+  if (!status.ok()) return FromGrpcStatus(status);
+  *unroll->mutable_intrinsic_rewards() = std::move(*response.mutable_agent_rewards());
+  *unroll->mutable_credit_shares() = std::move(*response.mutable_shares());
+  return absl::OkStatus();
+}
+
+void Actor::CloseStream() {
+  if (stream_ != nullptr) {
+    stream_->WritesDone();
+    stream_->Finish().ok();
+  }
+  stream_.reset();
+  stream_context_.reset();
+  stream_unrolls_ = 0;
+}
+
+absl::Status Actor::Push(const v1::Unroll& unroll) {
+  if (stream_ != nullptr && stream_unrolls_ >= config_.unrolls_per_stream) CloseStream();
+  if (stream_ == nullptr) {
+    stream_context_ = std::make_unique<grpc::ClientContext>();
+    // A stream lives for at most unrolls_per_stream unrolls; this deadline
+    // bounds how long a hung learner can hold this actor.
+    stream_context_->set_deadline(DeadlineIn(std::chrono::minutes(10)));
+    stream_ = learner_->PushUnrolls(stream_context_.get());
+  }
+  v1::PushUnrollsRequest request;
+  // Const unroll: the copy here is the cost of one memcpy of the packed fields.
+  *request.mutable_unroll() = unroll;
+  v1::PushUnrollsResponse ack;
+  if (!stream_->Write(request) || !stream_->Read(&ack)) {
+    const grpc::Status status = stream_->Finish();
+    stream_.reset();
+    stream_context_.reset();
+    return status.ok() ? absl::UnavailableError("learner closed the stream") : FromGrpcStatus(status);
+  }
+  ++stream_unrolls_;
+  if (!ack.accepted() && ack.error().rfind("stale", 0) != 0) {
+    return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack.error()));
+  }
+  return absl::OkStatus();
+}
+
+bool Actor::LearnerDone() {
+  grpc::ClientContext context;
+  context.set_deadline(DeadlineIn(std::chrono::seconds(2)));
+  v1::LearnerStatus status;
+  return learner_->GetStatus(&context, v1::GetStatusRequest(), &status).ok() && status.done();
+}
+
+absl::Status Actor::Run() {
+  if (!RefreshPolicy(/*wait=*/true)) return policy_error_;
+  Backoff backoff;
+  while (!ShutdownRequested()) {
+    v1::Unroll unroll;
+    Rollout(&unroll);
+    absl::Status status = Score(&unroll);
+    if (status.ok()) status = Push(unroll);
+    if (status.ok()) {
+      ++unrolls_pushed_;
+      backoff.Reset();
+    } else if (absl::IsInvalidArgument(status)) {
+      // A bug, not a transient fault: say so loudly and stop.
+      return status;
+    } else {
+      std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
+                   std::string(status.message()).c_str());
+      if (LearnerDone()) break;
+      backoff.Wait();
+    }
+    RefreshPolicy(/*wait=*/false);
+    if (!policy_error_.ok()) return policy_error_;
+  }
+  CloseStream();
+  return absl::OkStatus();
+}
+
+}  // namespace imca::actor

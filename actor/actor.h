@@ -1,0 +1,93 @@
+#ifndef IMCA_ACTOR_ACTOR_H_
+#define IMCA_ACTOR_ACTOR_H_
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/status.h"
+#include "common/env.h"
+#include "common/featurizer.h"
+#include "common/policy_mlp.h"
+#include "common/rng.h"
+#include "common/vec_env.h"
+#include "imca/v1/learner_service.grpc.pb.h"
+#include "imca/v1/reward_service.grpc.pb.h"
+
+namespace imca::actor {
+
+struct ActorConfig {
+  std::string actor_id = "actor-0";
+  int num_envs = 16;         // E training envs.
+  int unroll_length = 64;    // T steps per unroll.
+  int eval_envs = 2;         // Envs run with the same policy but never trained on.
+  uint64_t seed = 1;
+  std::chrono::milliseconds rpc_timeout{10000};
+  int unrolls_per_stream = 256;  // PushUnrolls streams are reopened after this many.
+};
+
+// Steps vectorised environments with a local copy of the newest policy, gets
+// each unroll's per-agent intrinsic rewards from the reward server (one Score
+// call per unroll) and streams the unroll to the learner. Every call has a
+// deadline; UNAVAILABLE / DEADLINE_EXCEEDED lead to a reconnect with
+// exponential backoff. Not thread-safe: one thread calls Run().
+class Actor {
+ public:
+  Actor(const env::Scenario* scenario, const ActorConfig& config,
+        std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server);
+
+  // Acts until a shutdown signal arrives or the learner reports its budget
+  // done. Blocks. Returns OK on either; INTERNAL if the learner publishes a
+  // policy that does not fit this scenario.
+  absl::Status Run();
+
+  int64_t unrolls_pushed() const { return unrolls_pushed_; }
+
+ private:
+  // Fetches a newer policy if there is one. With `wait`, retries until one
+  // is available (or shutdown). Returns false if none is available.
+  bool RefreshPolicy(bool wait);
+  void Rollout(v1::Unroll* unroll);
+  void SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
+                     float* probs);
+  absl::Status Score(v1::Unroll* unroll);
+  absl::Status Push(const v1::Unroll& unroll);
+  void CloseStream();
+  bool LearnerDone();
+
+  const env::Scenario* scenario_;
+  const ActorConfig config_;
+  const env::Featurizer featurizer_;
+  std::unique_ptr<v1::LearnerService::Stub> learner_;
+  std::unique_ptr<v1::RewardService::Stub> reward_;
+  std::optional<PolicyMlp> policy_;
+  absl::Status policy_error_;
+  env::VecEnv envs_;
+  env::VecEnv eval_envs_;
+  Rng rng_;
+
+  std::unique_ptr<grpc::ClientContext> stream_context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::PushUnrollsRequest, v1::PushUnrollsResponse>> stream_;
+  int stream_unrolls_ = 0;
+  int64_t unrolls_pushed_ = 0;
+
+  // Scratch buffers, sized once.
+  std::vector<float> obs_;
+  std::vector<float> probs_;
+  std::vector<int32_t> actions_;
+  std::vector<float> log_probs_;
+  std::vector<float> rewards_;
+  std::vector<int32_t> reached_;
+  std::unique_ptr<bool[]> terminated_;
+  std::unique_ptr<bool[]> truncated_;
+  std::vector<env::EpisodeEnd> finished_;
+};
+
+}  // namespace imca::actor
+
+#endif  // IMCA_ACTOR_ACTOR_H_

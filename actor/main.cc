@@ -1,0 +1,77 @@
+// The actor: wires flags to an Actor.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "actor/actor.h"
+#include "common/env.h"
+#include "common/grpc_util.h"
+
+ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
+ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
+ABSL_FLAG(std::string, scenario, "coop_nav", "scenario");
+ABSL_FLAG(std::string, map, "", "map file (default: maps/<scenario>.txt)");
+ABSL_FLAG(int, num_agents, 0, "agents (0: scenario default)");
+ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");
+ABSL_FLAG(int, envs, 16, "environments stepped together");
+ABSL_FLAG(int, unroll_length, 64, "steps per unroll");
+ABSL_FLAG(int, eval_envs, 2, "evaluation environments (same policy, not trained on)");
+ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and pid)");
+ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
+ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage("IMCA actor: steps environments and streams unrolls");
+  absl::ParseCommandLine(argc, argv);
+  using namespace imca;
+  std::string id = absl::GetFlag(FLAGS_actor_id);
+  if (id.empty()) {
+    char host[256] = {};
+    gethostname(host, sizeof(host) - 1);
+    id = absl::StrCat(host, ":", getpid());
+  }
+  auto fail = [&](const std::string& message) {
+    std::fprintf(stderr, "%s: %s\n", id.c_str(), message.c_str());
+    return 2;
+  };
+
+  env::ScenarioConfig scenario_config;
+  scenario_config.name = absl::GetFlag(FLAGS_scenario);
+  scenario_config.map_path = absl::GetFlag(FLAGS_map);
+  scenario_config.num_agents = absl::GetFlag(FLAGS_num_agents);
+  scenario_config.step_limit = absl::GetFlag(FLAGS_step_limit);
+  auto scenario = env::MakeScenario(scenario_config, env::DefaultMapDir());
+  if (!scenario.ok()) return fail(std::string(scenario.status().message()));
+
+  actor::ActorConfig config;
+  config.actor_id = id;
+  config.num_envs = absl::GetFlag(FLAGS_envs);
+  config.unroll_length = absl::GetFlag(FLAGS_unroll_length);
+  config.eval_envs = absl::GetFlag(FLAGS_eval_envs);
+  config.seed = absl::GetFlag(FLAGS_seed);
+  if (config.seed == 0) {
+    config.seed = static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()) ^
+                  (static_cast<uint64_t>(getpid()) << 32);
+  }
+  config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
+  if (config.num_envs < 1) return fail("--envs must be >= 1");
+  if (config.unroll_length < 1) return fail("--unroll_length must be >= 1");
+  if (config.eval_envs < 0) return fail("--eval_envs must be >= 0");
+  if (int64_t{config.num_envs} * config.unroll_length > 65536) {
+    return fail("--envs * --unroll_length must be <= 65536");
+  }
+
+  InstallShutdownSignalHandlers();
+  actor::Actor actor(scenario->get(), config, MakeChannel(absl::GetFlag(FLAGS_learner)),
+                     MakeChannel(absl::GetFlag(FLAGS_reward_server)));
+  const absl::Status status = actor.Run();
+  if (!status.ok()) return fail(std::string(status.message()));
+  std::fprintf(stderr, "%s: stopped after %lld unrolls\n", id.c_str(),
+               static_cast<long long>(actor.unrolls_pushed()));
+  return 0;
+}

@@ -1,0 +1,371 @@
+#include "learner/learner.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "common/status_macros.h"
+#include "common/unroll_check.h"
+#include "learner/gae.h"
+
+namespace imca::learner {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kMetricsHeader[] =
+    "iteration,env_steps,wall_seconds,env_steps_per_sec,success_rate,train_success_rate,"
+    "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
+    "policy_loss,value_loss,entropy,approx_kl,clip_fraction\n";
+constexpr int kCheckpointsKept = 3;
+
+template <typename T>
+void PushWindow(std::deque<T>* window, T value, int limit) {
+  window->push_back(value);
+  while (static_cast<int>(window->size()) > limit) window->pop_front();
+}
+
+template <typename T>
+double Mean(const std::deque<T>& values) {
+  if (values.empty()) return 0;
+  double sum = 0;
+  for (T v : values) sum += v;
+  return sum / values.size();
+}
+
+int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); }
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
+                                                         const LearnerConfig& config) {
+  if (config.batch_steps < 1) return absl::InvalidArgumentError("batch_steps must be >= 1");
+  if (config.max_policy_lag < 0) return absl::InvalidArgumentError("max_policy_lag must be >= 0");
+  if (config.queue_capacity < 1) return absl::InvalidArgumentError("queue_capacity must be >= 1");
+  if (!(config.gamma > 0 && config.gamma <= 1) || !(config.gamma_int > 0 && config.gamma_int <= 1) ||
+      !(config.lambda >= 0 && config.lambda <= 1)) {
+    return absl::InvalidArgumentError("gamma, gamma_int must be in (0,1] and lambda in [0,1]");
+  }
+  const env::Featurizer featurizer(*scenario);
+  IMCA_ASSIGN_OR_RETURN(std::unique_ptr<PpoTrainer> trainer,
+                        PpoTrainer::Create(config.ppo, featurizer.obs_dim(),
+                                           featurizer.global_dim() + scenario->num_agents(),
+                                           scenario->num_actions()));
+  auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(trainer)));
+  if (!config.run_dir.empty()) {
+    std::error_code error;
+    fs::create_directories(fs::path(config.run_dir) / "checkpoints", error);
+    if (error) {
+      return absl::InternalError(absl::StrCat("cannot create ", config.run_dir, ": ", error.message()));
+    }
+  }
+  learner->Publish();
+  return learner;
+}
+
+Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config,
+                 std::unique_ptr<PpoTrainer> trainer)
+    : scenario_(scenario), config_(config), featurizer_(*scenario), trainer_(std::move(trainer)) {}
+
+absl::Status Learner::Push(v1::Unroll unroll) {
+  if (absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true}); !valid.ok()) {
+    absl::MutexLock lock(&mu_);
+    ++unrolls_rejected_;
+    return valid;
+  }
+  absl::MutexLock lock(&mu_);
+  if (stopping_) return absl::UnavailableError("learner is stopping");
+  if (unroll.policy_version() > version_) {
+    ++unrolls_rejected_;
+    return absl::InvalidArgumentError(absl::StrCat("unroll.policy_version ", unroll.policy_version(),
+                                                   " is newer than the learner's ", version_));
+  }
+  if (version_ - unroll.policy_version() > config_.max_policy_lag) {
+    ++unrolls_stale_;
+    return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
+                                                      " is more than ", config_.max_policy_lag,
+                                                      " behind ", version_));
+  }
+  mu_.Await(absl::Condition(
+      +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
+        return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
+      },
+      this));
+  if (stopping_) return absl::UnavailableError("learner is stopping");
+  ++unrolls_received_;
+  actors_.insert(unroll.actor_id());
+  for (int i = 0; i < unroll.episode_returns_size(); ++i) {
+    PushWindow(&train_returns_, unroll.episode_returns(i), config_.metrics_window);
+  }
+  for (bool s : unroll.episode_success()) PushWindow(&train_success_, s, config_.metrics_window);
+  for (bool s : unroll.eval_success()) PushWindow(&eval_success_, s, config_.metrics_window);
+  queued_steps_ += Steps(unroll);
+  queue_.push_back(std::move(unroll));
+  return absl::OkStatus();
+}
+
+std::shared_ptr<const v1::Policy> Learner::CurrentPolicy() const {
+  absl::MutexLock lock(&mu_);
+  return policy_;
+}
+
+v1::LearnerStatus Learner::Status() const {
+  const double wall =
+      wall_offset_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  absl::MutexLock lock(&mu_);
+  v1::LearnerStatus status;
+  status.set_policy_version(version_);
+  status.set_env_steps(env_steps_);
+  status.set_unrolls_received(unrolls_received_);
+  status.set_unrolls_dropped_stale(unrolls_stale_);
+  status.set_unrolls_rejected(unrolls_rejected_);
+  status.set_wall_seconds(wall);
+  status.set_env_steps_per_sec(wall > 0 ? env_steps_ / wall : 0);
+  status.set_success_rate(Mean(eval_success_));
+  status.set_episode_return(Mean(train_returns_));
+  status.set_intrinsic_reward(last_intrinsic_);
+  status.set_done(done_);
+  for (const std::string& actor : actors_) status.add_actors_seen(actor);
+  return status;
+}
+
+void Learner::Stop() {
+  absl::MutexLock lock(&mu_);
+  stopping_ = true;
+}
+
+std::vector<v1::Unroll> Learner::NextBatch() {
+  std::vector<v1::Unroll> batch;
+  int64_t steps = 0;
+  absl::MutexLock lock(&mu_);
+  while (steps < config_.batch_steps) {
+    mu_.Await(absl::Condition(
+        +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
+          return self->stopping_ || !self->queue_.empty();
+        },
+        this));
+    if (stopping_) return {};
+    v1::Unroll unroll = std::move(queue_.front());
+    queue_.pop_front();
+    queued_steps_ -= Steps(unroll);
+    if (version_ - unroll.policy_version() > config_.max_policy_lag) {
+      ++unrolls_stale_;
+      continue;
+    }
+    steps += Steps(unroll);
+    batch.push_back(std::move(unroll));
+  }
+  return batch;
+}
+
+absl::Status Learner::Run() {
+  while (true) {
+    {
+      absl::MutexLock lock(&mu_);
+      if (stopping_ || (config_.budget_steps > 0 && env_steps_ >= config_.budget_steps)) break;
+    }
+    std::vector<v1::Unroll> batch = NextBatch();
+    if (batch.empty()) break;
+    IMCA_RETURN_IF_ERROR(TrainOn(batch));
+    if (config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) {
+      IMCA_RETURN_IF_ERROR(SaveCheckpoint());
+    }
+  }
+  {
+    absl::MutexLock lock(&mu_);
+    done_ = config_.budget_steps > 0 && env_steps_ >= config_.budget_steps;
+    stopping_ = true;
+  }
+  return SaveCheckpoint();
+}
+
+void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch) {
+  const int n = scenario_->num_agents();
+  const int k = scenario_->state_size();
+  const int obs_dim = featurizer_.obs_dim();
+  const int global_dim = featurizer_.global_dim();
+  const int critic_dim = global_dim + n;
+  auto critic_input = [&](const int32_t* state, int agent, float* out) {
+    featurizer_.GlobalState(state, out);
+    std::fill(out + global_dim, out + critic_dim, 0.0f);
+    out[global_dim + agent] = 1.0f;
+  };
+  for (const v1::Unroll& u : unrolls) {
+    const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
+    // Critic inputs of states [T+1][E][n] and reached states [T][E][n].
+    std::vector<float> inputs((T + 1) * M * critic_dim), final_inputs(B * critic_dim);
+    for (int64_t row = 0; row < (T + 1) * E; ++row) {
+      for (int a = 0; a < n; ++a) {
+        critic_input(u.states().data() + row * k, a, &inputs[(row * n + a) * critic_dim]);
+      }
+    }
+    for (int64_t row = 0; row < T * E; ++row) {
+      for (int a = 0; a < n; ++a) {
+        critic_input(u.next_states().data() + row * k, a, &final_inputs[(row * n + a) * critic_dim]);
+      }
+    }
+    std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
+    trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data());
+    trainer_->Values(final_inputs.data(), B, f_ext.data(), f_int.data());
+    std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
+    for (int64_t row = 0; row < T * E; ++row) {
+      for (int a = 0; a < n; ++a) {
+        terminated[row * n + a] = u.terminated(row);
+        truncated[row * n + a] = u.truncated(row);
+      }
+    }
+    std::vector<float> adv_ext(B), ret_ext(B), adv_int(B), ret_int(B);
+    ComputeGae(T, M, u.rewards().data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
+               config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
+    ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
+               truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
+
+    const int64_t offset = batch->size;
+    batch->size += B;
+    batch->obs.resize(batch->size * obs_dim);
+    batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
+    for (int64_t row = 0; row < T * E; ++row) {
+      for (int a = 0; a < n; ++a) {
+        featurizer_.Observe(u.states().data() + row * k, a, &batch->obs[(offset + row * n + a) * obs_dim]);
+      }
+    }
+    batch->actions.insert(batch->actions.end(), u.actions().begin(), u.actions().end());
+    batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
+                                      u.behaviour_log_probs().end());
+    for (int64_t i = 0; i < B; ++i) {
+      batch->advantages.push_back(adv_ext[i] + static_cast<float>(config_.intrinsic_coef) * adv_int[i]);
+    }
+    batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
+    batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
+  }
+}
+
+absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
+  PpoBatch batch;
+  BuildBatch(unrolls, &batch);
+  IMCA_ASSIGN_OR_RETURN(PpoStats stats, trainer_->Train(batch));
+  ++iteration_;
+  int64_t steps = 0;
+  double lag = 0, intrinsic = 0, share_max = 0;
+  int64_t shares = 0;
+  const int n = scenario_->num_agents();
+  int64_t version;
+  {
+    absl::MutexLock lock(&mu_);
+    version = version_;
+  }
+  for (const v1::Unroll& u : unrolls) {
+    steps += Steps(u);
+    lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
+    for (float r : u.intrinsic_rewards()) intrinsic += r;
+    for (int64_t i = 0; i + n <= u.credit_shares_size(); i += n) {
+      share_max += *std::max_element(u.credit_shares().begin() + i, u.credit_shares().begin() + i + n);
+      ++shares;
+    }
+  }
+  intrinsic /= static_cast<double>(batch.size);
+  if (shares > 0) share_max /= shares;
+  {
+    absl::MutexLock lock(&mu_);
+    env_steps_ += steps;
+    last_intrinsic_ = intrinsic;
+  }
+  Publish();
+  WriteMetricsRow(stats, lag, intrinsic, share_max);
+  return absl::OkStatus();
+}
+
+void Learner::Publish() {
+  absl::MutexLock lock(&mu_);
+  if (policy_ != nullptr) ++version_;
+  policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
+}
+
+void Learner::WriteMetricsRow(const PpoStats& stats, double lag, double intrinsic, double share_max) {
+  if (config_.run_dir.empty()) return;
+  if (!metrics_.is_open()) {
+    const std::string path = (fs::path(config_.run_dir) / "metrics.csv").string();
+    const bool fresh = !fs::exists(path) || fs::file_size(path) == 0;
+    metrics_.open(path, std::ios::app);
+    if (fresh) metrics_ << kMetricsHeader;
+  }
+  const v1::LearnerStatus s = Status();
+  double train_success;
+  {
+    absl::MutexLock lock(&mu_);
+    train_success = Mean(train_success_);
+  }
+  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f\n",
+                              iteration_, s.env_steps(), s.wall_seconds(), s.env_steps_per_sec(),
+                              s.success_rate(), train_success, s.episode_return(), intrinsic, share_max,
+                              s.policy_version(), lag, s.unrolls_dropped_stale(), stats.policy_loss,
+                              stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction);
+  metrics_.flush();
+}
+
+absl::Status Learner::SaveCheckpoint() {
+  if (config_.run_dir.empty()) return absl::OkStatus();
+  const fs::path dir = fs::path(config_.run_dir) / "checkpoints";
+  const v1::LearnerStatus s = Status();
+  const std::string stem = absl::StrFormat("ckpt-%08d", s.policy_version());
+  IMCA_RETURN_IF_ERROR(trainer_->Save((dir / (stem + ".pt")).string()));
+  {
+    std::ofstream meta(dir / (stem + ".meta.tmp"));
+    meta << "version " << s.policy_version() << "\nenv_steps " << s.env_steps() << "\nwall_seconds "
+         << s.wall_seconds() << "\niteration " << iteration_ << "\n";
+    if (!meta) return absl::InternalError("cannot write checkpoint metadata");
+  }
+  std::error_code error;
+  fs::rename(dir / (stem + ".meta.tmp"), dir / (stem + ".meta"), error);
+  if (error) return absl::InternalError(absl::StrCat("checkpoint rename: ", error.message()));
+  // Keep the newest few.
+  std::vector<fs::path> metas;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() == ".meta") metas.push_back(entry.path());
+  }
+  std::sort(metas.begin(), metas.end());
+  for (size_t i = 0; i + kCheckpointsKept < metas.size(); ++i) {
+    fs::path pt = metas[i];
+    pt.replace_extension(".pt");
+    fs::remove(metas[i], error);
+    fs::remove(pt, error);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Learner::Restore(const std::string& checkpoint_dir) {
+  std::vector<fs::path> metas;
+  std::error_code error;
+  for (const auto& entry : fs::directory_iterator(checkpoint_dir, error)) {
+    if (entry.path().extension() == ".meta") metas.push_back(entry.path());
+  }
+  if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
+  std::sort(metas.begin(), metas.end());
+  std::ifstream meta(metas.back());
+  std::string key;
+  int64_t version = -1, env_steps = -1, iteration = 0;
+  double wall = 0;
+  while (meta >> key) {
+    if (key == "version") meta >> version;
+    else if (key == "env_steps") meta >> env_steps;
+    else if (key == "wall_seconds") meta >> wall;
+    else if (key == "iteration") meta >> iteration;
+  }
+  if (version < 0 || env_steps < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("bad checkpoint metadata ", metas.back().string()));
+  }
+  fs::path pt = metas.back();
+  pt.replace_extension(".pt");
+  IMCA_RETURN_IF_ERROR(trainer_->Load(pt.string()));
+  iteration_ = iteration;
+  wall_offset_ = wall;
+  absl::MutexLock lock(&mu_);
+  version_ = version;
+  env_steps_ = env_steps;
+  policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
+  return absl::OkStatus();
+}
+
+}  // namespace imca::learner

@@ -1,0 +1,113 @@
+#ifndef IMCA_LEARNER_LEARNER_H_
+#define IMCA_LEARNER_LEARNER_H_
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+#include "common/env.h"
+#include "common/featurizer.h"
+#include "imca/v1/learner_service.pb.h"
+#include "imca/v1/unroll.pb.h"
+#include "learner/ppo_trainer.h"
+
+namespace imca::learner {
+
+struct LearnerConfig {
+  PpoConfig ppo;
+  double gamma = 0.99;            // Extrinsic discount.
+  double gamma_int = 0.99;        // Intrinsic discount.
+  double lambda = 0.95;           // GAE lambda (both heads).
+  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int.
+  int64_t batch_steps = 4096;     // Joint env steps (T*E summed over unrolls) per iteration.
+  int max_policy_lag = 4;         // Unrolls older than this many versions are dropped.
+  int queue_capacity = 32;        // Unrolls waiting for training; Push blocks beyond it.
+  int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
+  std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
+  int checkpoint_every = 50;      // Iterations between checkpoints (0: only at the end).
+  int metrics_window = 200;       // Episodes in the success-rate / return windows.
+};
+
+// The learner's domain logic, independent of gRPC: a bounded queue of
+// validated unrolls, the MAPPO training loop, versioned policy publication,
+// metrics and checkpoints. Thread-safe: Push/CurrentPolicy/Status may be called
+// from any thread while one thread runs Run().
+class Learner {
+ public:
+  // `scenario` must outlive the learner. Errors: INVALID_ARGUMENT for a bad
+  // config; INTERNAL if the run directory cannot be prepared.
+  static absl::StatusOr<std::unique_ptr<Learner>> Create(const env::Scenario* scenario,
+                                                         const LearnerConfig& config);
+
+  // Validates `unroll` and queues it for training; blocks while the queue is
+  // full (back-pressure). Returns OK when queued; INVALID_ARGUMENT naming the
+  // field; FAILED_PRECONDITION "stale ..." when it is more than max_policy_lag
+  // versions old (counted, dropped); UNAVAILABLE once the learner is stopping.
+  absl::Status Push(v1::Unroll unroll);
+
+  // The newest published policy (never null after Create).
+  std::shared_ptr<const v1::Policy> CurrentPolicy() const;
+  v1::LearnerStatus Status() const;
+
+  // Trains until the budget is reached or Stop() is called, then writes a
+  // final checkpoint. Blocks. Errors: INTERNAL from training or I/O.
+  absl::Status Run();
+  // Makes Run() return after its current iteration and Push() fail. Non-blocking.
+  void Stop();
+
+  // Restores trainer, version and counters from a checkpoint directory's
+  // newest checkpoint. Call before Run(). Errors: NOT_FOUND, INVALID_ARGUMENT.
+  absl::Status Restore(const std::string& checkpoint_dir);
+  // Writes a checkpoint now (from the training thread only).
+  absl::Status SaveCheckpoint();
+
+ private:
+  Learner(const env::Scenario* scenario, const LearnerConfig& config,
+          std::unique_ptr<PpoTrainer> trainer);
+
+  // Waits for unrolls worth batch_steps steps (or stop); drops stale ones.
+  std::vector<v1::Unroll> NextBatch();
+  absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
+  void BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch);
+  void Publish();
+  void WriteMetricsRow(const PpoStats& stats, double lag, double intrinsic, double share_max);
+
+  const env::Scenario* scenario_;
+  const LearnerConfig config_;
+  const env::Featurizer featurizer_;
+  std::unique_ptr<PpoTrainer> trainer_;  // Training thread only.
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::ofstream metrics_;                // Training thread only.
+  int64_t iteration_ = 0;                // Training thread only.
+  double wall_offset_ = 0;               // Seconds of earlier runs (resume).
+
+  mutable absl::Mutex mu_;
+  bool stopping_ ABSL_GUARDED_BY(mu_) = false;
+  std::deque<v1::Unroll> queue_ ABSL_GUARDED_BY(mu_);
+  int64_t queued_steps_ ABSL_GUARDED_BY(mu_) = 0;
+  std::shared_ptr<const v1::Policy> policy_ ABSL_GUARDED_BY(mu_);
+  int64_t version_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t env_steps_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t unrolls_received_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t unrolls_stale_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t unrolls_rejected_ ABSL_GUARDED_BY(mu_) = 0;
+  bool done_ ABSL_GUARDED_BY(mu_) = false;
+  std::set<std::string> actors_ ABSL_GUARDED_BY(mu_);
+  std::deque<bool> eval_success_ ABSL_GUARDED_BY(mu_);
+  std::deque<bool> train_success_ ABSL_GUARDED_BY(mu_);
+  std::deque<float> train_returns_ ABSL_GUARDED_BY(mu_);
+  double last_intrinsic_ ABSL_GUARDED_BY(mu_) = 0;
+};
+
+}  // namespace imca::learner
+
+#endif  // IMCA_LEARNER_LEARNER_H_

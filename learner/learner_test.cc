@@ -1,0 +1,120 @@
+#include "learner/learner.h"
+
+#include <filesystem>
+#include <thread>
+
+#include "common/env.h"
+#include "common/test_unrolls.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace imca::learner {
+namespace {
+
+using ::testing::HasSubstr;
+
+class LearnerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+    ASSERT_TRUE(scenario.ok());
+    scenario_ = *std::move(scenario);
+    run_dir_ = ::testing::TempDir() + "/learner_test_" + std::to_string(getpid());
+    std::filesystem::remove_all(run_dir_);
+    config_.batch_steps = 256;
+    config_.run_dir = run_dir_;
+    config_.checkpoint_every = 0;
+    config_.max_policy_lag = 1;
+  }
+
+  v1::Unroll Unroll(int64_t version, uint64_t seed) {
+    v1::Unroll u = testing::RandomUnroll(*scenario_, 16, 16, seed);
+    u.set_policy_version(version);
+    for (int i = 0; i < u.intrinsic_rewards_size(); ++i) u.set_intrinsic_rewards(i, 0.01f * (i % 7));
+    return u;
+  }
+
+  std::unique_ptr<env::Scenario> scenario_;
+  std::string run_dir_;
+  LearnerConfig config_;
+};
+
+TEST_F(LearnerTest, RejectsBadUnrollsWithTheFieldName) {
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  v1::Unroll bad = Unroll(0, 1);
+  bad.mutable_intrinsic_rewards()->RemoveLast();
+  absl::Status status = (*learner)->Push(bad);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("unroll.intrinsic_rewards"));
+  bad = Unroll(0, 1);
+  bad.set_behaviour_log_probs(0, 0.5f);
+  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.behaviour_log_probs[0]"));
+  bad = Unroll(7, 1);
+  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.policy_version"));
+  EXPECT_EQ((*learner)->Status().unrolls_rejected(), 3);
+  EXPECT_EQ((*learner)->Status().unrolls_received(), 0);
+}
+
+TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
+  config_.budget_steps = 3 * 256;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  EXPECT_EQ(l->CurrentPolicy()->version(), 0);
+  std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
+  uint64_t seed = 1;
+  ASSERT_TRUE(l->Push(Unroll(0, seed++)).ok());
+  while (l->Status().policy_version() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_TRUE(l->Push(Unroll(1, seed++)).ok());
+  while (l->Status().policy_version() < 2) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  // Version 0 is now 2 behind with max_policy_lag 1: dropped and counted.
+  const absl::Status stale = l->Push(Unroll(0, seed++));
+  EXPECT_EQ(stale.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(stale.message(), HasSubstr("stale"));
+  ASSERT_TRUE(l->Push(Unroll(2, seed++)).ok());
+  trainer.join();
+  const v1::LearnerStatus status = l->Status();
+  EXPECT_TRUE(status.done());
+  EXPECT_EQ(status.policy_version(), 3);
+  EXPECT_EQ(status.env_steps(), 3 * 256);
+  EXPECT_EQ(status.unrolls_dropped_stale(), 1);
+  EXPECT_EQ(l->Push(Unroll(3, seed++)).code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(l->CurrentPolicy()->tensors_size(), 6);
+
+  // metrics.csv has a header and one row per iteration.
+  std::ifstream metrics(run_dir_ + "/metrics.csv");
+  std::string line;
+  int lines = 0;
+  while (std::getline(metrics, line)) ++lines;
+  EXPECT_EQ(lines, 4);
+
+  // A new learner resumes from the final checkpoint with the same policy.
+  auto resumed = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(resumed.ok());
+  ASSERT_TRUE((*resumed)->Restore(run_dir_ + "/checkpoints").ok());
+  EXPECT_EQ((*resumed)->Status().policy_version(), 3);
+  EXPECT_EQ((*resumed)->Status().env_steps(), 3 * 256);
+  const v1::Policy& a = *l->CurrentPolicy();
+  const v1::Policy& b = *(*resumed)->CurrentPolicy();
+  ASSERT_EQ(a.tensors_size(), b.tensors_size());
+  for (int i = 0; i < a.tensors_size(); ++i) {
+    EXPECT_EQ(a.tensors(i).data().size(), b.tensors(i).data().size());
+    EXPECT_TRUE(std::equal(a.tensors(i).data().begin(), a.tensors(i).data().end(), b.tensors(i).data().begin()));
+  }
+}
+
+TEST_F(LearnerTest, StopWakesBlockedPushers) {
+  config_.queue_capacity = 1;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok());
+  Learner* l = learner->get();
+  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());  // Fills the queue; nobody trains.
+  std::thread pusher([l, this] { EXPECT_EQ(l->Push(Unroll(0, 2)).code(), absl::StatusCode::kUnavailable); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  l->Stop();
+  pusher.join();
+}
+
+}  // namespace
+}  // namespace imca::learner

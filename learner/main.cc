@@ -1,0 +1,118 @@
+// The learner: wires flags to a Learner and serves LearnerService.
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "common/env.h"
+#include "common/grpc_util.h"
+#include "learner/learner.h"
+#include "learner/learner_service.h"
+
+ABSL_FLAG(std::string, listen, "127.0.0.1:50052", "host:port to serve on (port 0: any free port)");
+ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
+ABSL_FLAG(std::string, scenario, "coop_nav", "scenario");
+ABSL_FLAG(std::string, map, "", "map file (default: maps/<scenario>.txt)");
+ABSL_FLAG(int, num_agents, 0, "agents (0: scenario default)");
+ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");
+ABSL_FLAG(std::string, run_dir, "", "run folder for metrics.csv and checkpoints/");
+ABSL_FLAG(std::string, resume, "", "checkpoint directory to resume from");
+ABSL_FLAG(int64_t, steps, 2000000, "budget in joint env steps (0: until stopped)");
+ABSL_FLAG(int64_t, batch_steps, 4096, "joint env steps per PPO iteration");
+ABSL_FLAG(int, epochs, 4, "PPO epochs per iteration");
+ABSL_FLAG(int, minibatches, 4, "PPO minibatches per epoch");
+ABSL_FLAG(double, lr, 5e-4, "Adam learning rate");
+ABSL_FLAG(double, entropy_coef, 0.01, "entropy bonus coefficient");
+ABSL_FLAG(double, clip, 0.2, "PPO ratio clip");
+ABSL_FLAG(double, gamma, 0.99, "extrinsic discount");
+ABSL_FLAG(double, gamma_int, 0.99, "intrinsic discount");
+ABSL_FLAG(double, lambda, 0.95, "GAE lambda");
+ABSL_FLAG(double, intrinsic_coef, 1.0, "c_int: weight of the intrinsic advantage");
+ABSL_FLAG(int, hidden, 64, "hidden layer width");
+ABSL_FLAG(int, max_policy_lag, 4, "drop unrolls older than this many policy versions");
+ABSL_FLAG(int, checkpoint_every, 50, "iterations between checkpoints");
+ABSL_FLAG(uint64_t, seed, 1, "seed of network initialisation and minibatch shuffling");
+ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads");
+
+namespace {
+
+int Fail(const std::string& message) {
+  std::fprintf(stderr, "learner: %s\n", message.c_str());
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage("IMCA learner: multi-agent PPO over gRPC");
+  absl::ParseCommandLine(argc, argv);
+  using namespace imca;
+
+  env::ScenarioConfig scenario_config;
+  scenario_config.name = absl::GetFlag(FLAGS_scenario);
+  scenario_config.map_path = absl::GetFlag(FLAGS_map);
+  scenario_config.num_agents = absl::GetFlag(FLAGS_num_agents);
+  scenario_config.step_limit = absl::GetFlag(FLAGS_step_limit);
+  auto scenario = env::MakeScenario(scenario_config, env::DefaultMapDir());
+  if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
+
+  learner::LearnerConfig config;
+  config.ppo.hidden = absl::GetFlag(FLAGS_hidden);
+  config.ppo.learning_rate = absl::GetFlag(FLAGS_lr);
+  config.ppo.epochs = absl::GetFlag(FLAGS_epochs);
+  config.ppo.minibatches = absl::GetFlag(FLAGS_minibatches);
+  config.ppo.entropy_coef = absl::GetFlag(FLAGS_entropy_coef);
+  config.ppo.clip = absl::GetFlag(FLAGS_clip);
+  config.ppo.seed = absl::GetFlag(FLAGS_seed);
+  config.ppo.threads = absl::GetFlag(FLAGS_threads);
+  config.gamma = absl::GetFlag(FLAGS_gamma);
+  config.gamma_int = absl::GetFlag(FLAGS_gamma_int);
+  config.lambda = absl::GetFlag(FLAGS_lambda);
+  config.intrinsic_coef = absl::GetFlag(FLAGS_intrinsic_coef);
+  config.batch_steps = absl::GetFlag(FLAGS_batch_steps);
+  config.max_policy_lag = absl::GetFlag(FLAGS_max_policy_lag);
+  config.budget_steps = absl::GetFlag(FLAGS_steps);
+  config.run_dir = absl::GetFlag(FLAGS_run_dir);
+  config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
+  auto learner = learner::Learner::Create(scenario->get(), config);
+  if (!learner.ok()) return Fail(std::string(learner.status().message()));
+  if (const std::string resume = absl::GetFlag(FLAGS_resume); !resume.empty()) {
+    if (absl::Status restored = (*learner)->Restore(resume); !restored.ok()) {
+      return Fail(absl::StrCat("--resume: ", restored.message()));
+    }
+    std::fprintf(stderr, "learner: resumed at policy version %lld\n",
+                 static_cast<long long>((*learner)->Status().policy_version()));
+  }
+
+  learner::LearnerServiceImpl service(learner->get());
+  InstallShutdownSignalHandlers();
+  int port = 0;
+  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port);
+  if (!server.ok()) return Fail(absl::StrCat("--listen: ", server.status().message()));
+  if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
+    std::ofstream(port_file) << port << "\n";
+  }
+  std::fprintf(stderr, "learner: serving on port %d\n", port);
+
+  // Signals only set a flag; this watcher turns it into Learner::Stop().
+  std::atomic<bool> finished{false};
+  std::thread watcher([&] {
+    while (!finished.load() && !ShutdownRequested()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    (*learner)->Stop();
+  });
+  const absl::Status run = (*learner)->Run();
+  finished.store(true);
+  watcher.join();
+  (*server)->Shutdown(DeadlineIn(std::chrono::seconds(3)));
+  if (!run.ok()) return Fail(absl::StrCat("training failed: ", run.message()));
+  const v1::LearnerStatus status = (*learner)->Status();
+  std::fprintf(stderr, "learner: stopped at %lld env steps, policy version %lld\n",
+               static_cast<long long>(status.env_steps()),
+               static_cast<long long>(status.policy_version()));
+  return 0;
+}

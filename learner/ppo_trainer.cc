@@ -1,0 +1,641 @@
+#include "learner/ppo_trainer.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <ATen/CPUGeneratorImpl.h>
+#include <torch/torch.h>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "common/status_macros.h"
+
+namespace imca::learner {
+
+namespace internal {
+
+// The PPO clipped surrogate as a loss to minimise:
+//   -mean(min(ratio * A, clamp(ratio, 1 - clip, 1 + clip) * A)),
+//   ratio = exp(log_probs - behaviour_log_probs).
+// Outside the clip range on the side the advantage pushes towards, the min
+// selects the clamped (constant) term, so such samples give no gradient.
+// Not in an anonymous namespace so that the unit test can call it.
+torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
+                                   const torch::Tensor& behaviour_log_probs,
+                                   const torch::Tensor& advantages, double clip) {
+  const torch::Tensor ratio = torch::exp(log_probs - behaviour_log_probs);
+  const torch::Tensor unclipped = ratio * advantages;
+  const torch::Tensor clipped = torch::clamp(ratio, 1.0 - clip, 1.0 + clip) * advantages;
+  return -torch::min(unclipped, clipped).mean();
+}
+
+}  // namespace internal
+
+namespace {
+
+constexpr double kAdvantageEps = 1e-8;
+// Floor on the return normaliser's variance (std >= 0.01). Constant returns
+// (e.g. a sparse reward never seen yet) drive the variance to 0; dividing the
+// value targets by a vanishing std would blow up tiny differences.
+constexpr double kMinReturnVar = 1e-4;
+// A recorded log-probability may round slightly above 0 when p ~ 1.
+constexpr float kMaxLogProb = 1e-4f;
+
+// An MLP of three Linear layers with tanh after the first two. Orthogonal
+// weights (gain sqrt(2) for hidden layers, `last_gain` for the output layer)
+// and zero biases, the usual PPO initialisation.
+class MlpImpl : public torch::nn::Module {
+ public:
+  MlpImpl(int64_t in, int64_t hidden, int64_t out, double last_gain) {
+    const int64_t sizes[] = {in, hidden, hidden, out};
+    for (int i = 0; i < 3; ++i) {
+      torch::nn::Linear layer(sizes[i], sizes[i + 1]);
+      torch::nn::init::orthogonal_(layer->weight, i == 2 ? last_gain : std::sqrt(2.0));
+      torch::nn::init::zeros_(layer->bias);
+      layers_.push_back(register_module(std::to_string(i), layer));
+    }
+  }
+
+  torch::Tensor forward(torch::Tensor x) {
+    for (size_t i = 0; i < layers_.size(); ++i) {
+      x = layers_[i]->forward(x);
+      if (i + 1 < layers_.size()) x = torch::tanh(x);
+    }
+    return x;
+  }
+
+  const std::vector<torch::nn::Linear>& layers() const { return layers_; }
+
+ private:
+  std::vector<torch::nn::Linear> layers_;
+};
+TORCH_MODULE(Mlp);
+
+// Everything the optimiser is bound to. Load builds a fresh one and swaps it
+// in only when the whole checkpoint has been read, so a failed load changes
+// nothing.
+struct Model {
+  Mlp actor{nullptr};
+  Mlp critic{nullptr};
+  std::vector<torch::Tensor> parameters;  // Actor's, then critic's.
+  std::unique_ptr<torch::optim::Adam> optimizer;
+};
+
+Model BuildModel(const PpoConfig& config, int obs_dim, int critic_dim, int num_actions) {
+  Model model;
+  model.actor = Mlp(obs_dim, config.hidden, num_actions, /*last_gain=*/0.01);
+  // Two outputs: normalised extrinsic and intrinsic values.
+  model.critic = Mlp(critic_dim, config.hidden, 2, /*last_gain=*/1.0);
+  model.parameters = model.actor->parameters();
+  for (const torch::Tensor& p : model.critic->parameters()) model.parameters.push_back(p);
+  model.optimizer = std::make_unique<torch::optim::Adam>(
+      model.parameters, torch::optim::AdamOptions(config.learning_rate).eps(config.adam_eps));
+  return model;
+}
+
+// Running mean and (population) variance of a scalar stream, merging whole
+// batches with the parallel algorithm of Chan et al. (as in OpenAI baselines'
+// RunningMeanStd). It starts as a tiny pseudo-sample (count 1e-4) with mean 0
+// and variance 1, so the first batch dominates and nothing divides by 0.
+class RunningMeanVar {
+ public:
+  void Update(const std::vector<float>& x) {
+    const double n = static_cast<double>(x.size());
+    if (n == 0) return;
+    double batch_mean = 0;
+    for (float v : x) batch_mean += v;
+    batch_mean /= n;
+    double batch_m2 = 0;
+    for (float v : x) batch_m2 += (v - batch_mean) * (v - batch_mean);
+    const double delta = batch_mean - mean_;
+    const double total = count_ + n;
+    const double m2 = var_ * count_ + batch_m2 + delta * delta * count_ * n / total;
+    mean_ += delta * n / total;
+    var_ = m2 / total;
+    count_ = total;
+  }
+
+  double mean() const { return mean_; }
+  double stddev() const { return std::sqrt(std::max(var_, kMinReturnVar)); }
+
+  // [mean, var, count] as float64, for checkpoints.
+  torch::Tensor ToTensor() const { return torch::tensor({mean_, var_, count_}, torch::kFloat64); }
+
+  static absl::StatusOr<RunningMeanVar> FromTensor(const torch::Tensor& t,
+                                                   const std::string& name) {
+    if (t.dim() != 1 || t.size(0) != 3) {
+      return absl::InvalidArgumentError(absl::StrCat("checkpoint ", name, " is not a [3] tensor"));
+    }
+    const torch::Tensor d = t.to(torch::kFloat64).contiguous();
+    RunningMeanVar r;
+    r.mean_ = d[0].item<double>();
+    r.var_ = d[1].item<double>();
+    r.count_ = d[2].item<double>();
+    if (!std::isfinite(r.mean_) || !std::isfinite(r.var_) || !(r.var_ >= 0) ||
+        !std::isfinite(r.count_) || !(r.count_ > 0)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("checkpoint ", name, " holds invalid statistics"));
+    }
+    return r;
+  }
+
+ private:
+  double mean_ = 0;
+  double var_ = 1;
+  double count_ = 1e-4;
+};
+
+// The batch as tensors, advantages and value targets already normalised.
+struct TrainData {
+  torch::Tensor obs;                  // [B, obs_dim]
+  torch::Tensor critic_inputs;        // [B, critic_dim]
+  torch::Tensor actions;              // [B] int64
+  torch::Tensor behaviour_log_probs;  // [B]
+  torch::Tensor advantages;           // [B]
+  torch::Tensor value_targets;        // [B, 2]
+};
+
+// Sums over minibatch updates, turned into averages by Finish():
+// losses, entropy and grad norm are means over updates; approx_kl is the
+// mean over the samples of the last epoch; clip_fraction is the share of
+// clipped samples over all epochs.
+struct StatsSums {
+  double policy_loss = 0;
+  double value_loss = 0;
+  double entropy = 0;
+  double grad_norm = 0;
+  int64_t updates = 0;
+  double kl = 0;
+  int64_t kl_samples = 0;
+  int64_t clipped = 0;
+  int64_t samples = 0;
+
+  PpoStats Finish() const {
+    PpoStats s;
+    const double u = std::max<int64_t>(updates, 1);
+    s.policy_loss = policy_loss / u;
+    s.value_loss = value_loss / u;
+    s.entropy = entropy / u;
+    s.grad_norm = grad_norm / u;
+    s.approx_kl = kl / std::max<int64_t>(kl_samples, 1);
+    s.clip_fraction = static_cast<double>(clipped) / std::max<int64_t>(samples, 1);
+    return s;
+  }
+};
+
+torch::Tensor CopyFloats(const std::vector<float>& v, std::vector<int64_t> shape) {
+  return torch::from_blob(const_cast<float*>(v.data()), shape, torch::kFloat32).clone();
+}
+
+// Mean 0, std 1 (population std), in float64 for the statistics.
+torch::Tensor NormaliseAdvantages(const torch::Tensor& advantages) {
+  const torch::Tensor a = advantages.to(torch::kFloat64);
+  const torch::Tensor centred = a - a.mean();
+  const torch::Tensor std = centred.pow(2).mean().sqrt();
+  return (centred / (std + kAdvantageEps)).to(torch::kFloat32);
+}
+
+torch::Tensor NormaliseReturns(const std::vector<float>& returns, const RunningMeanVar& norm) {
+  const torch::Tensor r = CopyFloats(returns, {static_cast<int64_t>(returns.size())});
+  return ((r.to(torch::kFloat64) - norm.mean()) / norm.stddev()).to(torch::kFloat32);
+}
+
+absl::Status CheckSize(const char* field, size_t actual, int64_t expected) {
+  if (static_cast<int64_t>(actual) != expected) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("batch.", field, " has ", actual, " elements, expected ", expected));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckFinite(const char* field, const std::vector<float>& v) {
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (!std::isfinite(v[i])) {
+      return absl::InvalidArgumentError(absl::StrCat("batch.", field, "[", i, "] is not finite"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+void AddTensor(const std::string& name, const torch::Tensor& tensor, v1::Policy& policy) {
+  const torch::Tensor t = tensor.detach().to(torch::kFloat32).contiguous();
+  v1::NamedTensor* out = policy.add_tensors();
+  out->set_name(name);
+  for (int64_t d : t.sizes()) out->add_shape(d);
+  const float* data = t.data_ptr<float>();
+  out->mutable_data()->Add(data, data + t.numel());
+}
+
+// Parameters of `loaded` must have the shapes of `expected` (Module::load
+// adopts whatever shape the file holds).
+absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn::Module& loaded,
+                             const std::string& what) {
+  const auto want = expected.named_parameters();
+  const auto got = loaded.named_parameters();
+  for (const auto& item : want) {
+    const torch::Tensor* t = got.find(item.key());
+    if (t == nullptr || t->sizes() != item.value().sizes()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("checkpoint ", what, ".", item.key(), " has shape ",
+                       t == nullptr ? "(missing)" : c10::str(t->sizes()), ", expected ",
+                       c10::str(item.value().sizes())));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// Flushes a written file to disk so that the rename below publishes a
+// complete checkpoint even across a crash of the machine.
+absl::Status SyncFile(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0) return absl::InternalError(absl::StrCat("open ", path, ": ", std::strerror(errno)));
+  const int rc = ::fsync(fd);
+  const int saved_errno = errno;
+  ::close(fd);
+  if (rc != 0) {
+    return absl::InternalError(absl::StrCat("fsync ", path, ": ", std::strerror(saved_errno)));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+struct PpoTrainer::Impl {
+  Impl(const PpoConfig& config, int obs_dim, int critic_dim, int num_actions)
+      : config_(config),
+        obs_dim_(obs_dim),
+        critic_dim_(critic_dim),
+        num_actions_(num_actions),
+        generator_(at::detail::createCPUGenerator(config.seed)) {
+    torch::set_num_threads(config.threads);
+    torch::manual_seed(config.seed);  // Makes the initial weights a function of the seed.
+    model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
+  }
+
+  absl::Status ValidateBatch(const PpoBatch& batch) const;
+  TrainData MakeTrainData(const PpoBatch& batch) const;
+  absl::StatusOr<PpoStats> Train(const PpoBatch& batch);
+  absl::Status TrainMinibatch(const TrainData& data, const torch::Tensor& indices, bool last_epoch,
+                              StatsSums& sums);
+  void WriteTo(torch::serialize::OutputArchive& archive) const;
+  absl::Status ReadFrom(torch::serialize::InputArchive& archive, const std::string& path);
+
+  const PpoConfig config_;
+  const int obs_dim_;
+  const int critic_dim_;
+  const int num_actions_;
+  Model model_;
+  RunningMeanVar ext_norm_;  // Returns of the extrinsic value head.
+  RunningMeanVar int_norm_;  // Returns of the intrinsic value head.
+  at::Generator generator_;  // Minibatch shuffling only; saved in checkpoints.
+};
+
+absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
+  const int64_t b = batch.size;
+  if (b <= 0) {
+    return absl::InvalidArgumentError(absl::StrCat("batch.size is ", b, ", expected > 0"));
+  }
+  if (b > std::numeric_limits<int64_t>::max() / std::max(obs_dim_, critic_dim_)) {
+    return absl::InvalidArgumentError(absl::StrCat("batch.size ", b, " is too large"));
+  }
+  IMCA_RETURN_IF_ERROR(CheckSize("obs", batch.obs.size(), b * obs_dim_));
+  IMCA_RETURN_IF_ERROR(CheckSize("critic_inputs", batch.critic_inputs.size(), b * critic_dim_));
+  IMCA_RETURN_IF_ERROR(CheckSize("actions", batch.actions.size(), b));
+  IMCA_RETURN_IF_ERROR(CheckSize("behaviour_log_probs", batch.behaviour_log_probs.size(), b));
+  IMCA_RETURN_IF_ERROR(CheckSize("advantages", batch.advantages.size(), b));
+  IMCA_RETURN_IF_ERROR(CheckSize("returns_ext", batch.returns_ext.size(), b));
+  IMCA_RETURN_IF_ERROR(CheckSize("returns_int", batch.returns_int.size(), b));
+  for (int64_t i = 0; i < b; ++i) {
+    const int32_t a = batch.actions[i];
+    if (a < 0 || a >= num_actions_) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("batch.actions[", i, "] = ", a, " is out of range [0, ", num_actions_, ")"));
+    }
+  }
+  IMCA_RETURN_IF_ERROR(CheckFinite("obs", batch.obs));
+  IMCA_RETURN_IF_ERROR(CheckFinite("critic_inputs", batch.critic_inputs));
+  IMCA_RETURN_IF_ERROR(CheckFinite("behaviour_log_probs", batch.behaviour_log_probs));
+  IMCA_RETURN_IF_ERROR(CheckFinite("advantages", batch.advantages));
+  IMCA_RETURN_IF_ERROR(CheckFinite("returns_ext", batch.returns_ext));
+  IMCA_RETURN_IF_ERROR(CheckFinite("returns_int", batch.returns_int));
+  for (int64_t i = 0; i < b; ++i) {
+    if (batch.behaviour_log_probs[i] > kMaxLogProb) {
+      return absl::InvalidArgumentError(absl::StrCat("batch.behaviour_log_probs[", i,
+                                                     "] = ", batch.behaviour_log_probs[i],
+                                                     " is not a log-probability (> 0)"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// Call after the normalisers have seen this batch's returns.
+TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) const {
+  const int64_t b = batch.size;
+  TrainData data;
+  data.obs = CopyFloats(batch.obs, {b, obs_dim_});
+  data.critic_inputs = CopyFloats(batch.critic_inputs, {b, critic_dim_});
+  data.actions = torch::from_blob(const_cast<int32_t*>(batch.actions.data()), {b}, torch::kInt32)
+                     .to(torch::kInt64);
+  data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});
+  data.advantages = NormaliseAdvantages(CopyFloats(batch.advantages, {b}));
+  data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
+                                     NormaliseReturns(batch.returns_int, int_norm_)},
+                                    /*dim=*/1);
+  return data;
+}
+
+absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
+  ext_norm_.Update(batch.returns_ext);
+  int_norm_.Update(batch.returns_int);
+  const TrainData data = MakeTrainData(batch);
+  const int64_t b = batch.size;
+  // With fewer samples than minibatches, every minibatch holds one sample.
+  const int64_t minibatches = std::min<int64_t>(config_.minibatches, b);
+  StatsSums sums;
+  for (int epoch = 0; epoch < config_.epochs; ++epoch) {
+    const torch::Tensor order = torch::randperm(b, generator_, torch::kInt64);
+    for (int64_t k = 0; k < minibatches; ++k) {
+      const int64_t begin = k * b / minibatches;
+      const int64_t end = (k + 1) * b / minibatches;
+      IMCA_RETURN_IF_ERROR(
+          TrainMinibatch(data, order.slice(0, begin, end), epoch == config_.epochs - 1, sums));
+    }
+  }
+  return sums.Finish();
+}
+
+absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch::Tensor& indices,
+                                              bool last_epoch, StatsSums& sums) {
+  const torch::Tensor actions = data.actions.index_select(0, indices);
+  const torch::Tensor behaviour = data.behaviour_log_probs.index_select(0, indices);
+  const torch::Tensor advantages = data.advantages.index_select(0, indices);
+
+  const torch::Tensor log_probs_all =
+      torch::log_softmax(model_.actor->forward(data.obs.index_select(0, indices)), /*dim=*/1);
+  const torch::Tensor log_probs = log_probs_all.gather(1, actions.unsqueeze(1)).squeeze(1);
+  const torch::Tensor entropy = -(log_probs_all.exp() * log_probs_all).sum(1).mean();
+  const torch::Tensor policy_loss =
+      internal::ClippedSurrogateLoss(log_probs, behaviour, advantages, config_.clip);
+  const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
+  // MSE per head, summed over the two heads.
+  const torch::Tensor value_loss =
+      (values - data.value_targets.index_select(0, indices)).pow(2).mean(/*dim=*/0).sum();
+  const torch::Tensor loss =
+      policy_loss + config_.value_coef * value_loss - config_.entropy_coef * entropy;
+
+  const double loss_value = loss.item<double>();
+  if (!std::isfinite(loss_value)) {
+    return absl::InternalError(absl::StrCat(
+        "non-finite PPO loss ", loss_value, " (policy ", policy_loss.item<double>(), ", value ",
+        value_loss.item<double>(), ", entropy ", entropy.item<double>(), "); no step taken"));
+  }
+  model_.optimizer->zero_grad();
+  loss.backward();
+  const double grad_norm =
+      torch::nn::utils::clip_grad_norm_(model_.parameters, config_.max_grad_norm);
+  if (!std::isfinite(grad_norm)) {
+    model_.optimizer->zero_grad();
+    return absl::InternalError(
+        absl::StrCat("non-finite gradient norm ", grad_norm, "; no step taken"));
+  }
+  model_.optimizer->step();
+
+  // Diagnostics, from the forward pass before this step.
+  torch::NoGradGuard no_grad;
+  const torch::Tensor log_ratio = log_probs.detach() - behaviour;
+  const torch::Tensor ratio = log_ratio.exp();
+  sums.policy_loss += policy_loss.item<double>();
+  sums.value_loss += value_loss.item<double>();
+  sums.entropy += entropy.item<double>();
+  sums.grad_norm += grad_norm;
+  ++sums.updates;
+  sums.clipped += ((ratio - 1.0).abs() > config_.clip).sum().item<int64_t>();
+  sums.samples += indices.numel();
+  if (last_epoch) {
+    sums.kl += ((ratio - 1.0) - log_ratio).to(torch::kFloat64).sum().item<double>();
+    sums.kl_samples += indices.numel();
+  }
+  return absl::OkStatus();
+}
+
+// Checkpoint layout: "dims" (int64 [obs_dim, critic_dim, num_actions,
+// hidden]), sub-archives "actor", "critic", "optimizer", float64 [mean, var,
+// count] tensors "value_norm_ext"/"value_norm_int", and "generator" (the
+// shuffling RNG state).
+void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
+  archive.write(
+      "dims",
+      torch::tensor({static_cast<int64_t>(obs_dim_), static_cast<int64_t>(critic_dim_),
+                     static_cast<int64_t>(num_actions_), static_cast<int64_t>(config_.hidden)},
+                    torch::kInt64));
+  torch::serialize::OutputArchive actor(archive.compilation_unit());
+  model_.actor->save(actor);
+  archive.write("actor", actor);
+  torch::serialize::OutputArchive critic(archive.compilation_unit());
+  model_.critic->save(critic);
+  archive.write("critic", critic);
+  torch::serialize::OutputArchive optimizer(archive.compilation_unit());
+  model_.optimizer->save(optimizer);
+  archive.write("optimizer", optimizer);
+  archive.write("value_norm_ext", ext_norm_.ToTensor());
+  archive.write("value_norm_int", int_norm_.ToTensor());
+  archive.write("generator", generator_.get_state());
+}
+
+// Reads into fresh objects and commits only when everything checked out.
+// The optimiser's hyperparameters (lr, eps) stay those of this trainer's
+// config; only its state (moments, step counts) comes from the file.
+absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
+                                        const std::string& path) {
+  torch::Tensor dims;
+  archive.read("dims", dims);
+  const std::vector<int64_t> want = {obs_dim_, critic_dim_, num_actions_, config_.hidden};
+  const torch::Tensor got = dims.to(torch::kInt64).flatten().contiguous();
+  const std::vector<int64_t> have(got.data_ptr<int64_t>(), got.data_ptr<int64_t>() + got.numel());
+  if (have != want) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "checkpoint ", path, " has (obs_dim, critic_dim, num_actions, hidden) = (",
+        absl::StrJoin(have, ", "), "), this trainer has (", absl::StrJoin(want, ", "), ")"));
+  }
+  Model fresh = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
+  torch::serialize::InputArchive actor;
+  archive.read("actor", actor);
+  fresh.actor->load(actor);
+  IMCA_RETURN_IF_ERROR(CheckSameShapes(*model_.actor, *fresh.actor, "actor"));
+  torch::serialize::InputArchive critic;
+  archive.read("critic", critic);
+  fresh.critic->load(critic);
+  IMCA_RETURN_IF_ERROR(CheckSameShapes(*model_.critic, *fresh.critic, "critic"));
+  torch::serialize::InputArchive optimizer;
+  archive.read("optimizer", optimizer);
+  fresh.optimizer->load(optimizer);
+  for (auto& group : fresh.optimizer->param_groups()) {
+    static_cast<torch::optim::AdamOptions&>(group.options())
+        .lr(config_.learning_rate)
+        .eps(config_.adam_eps);
+  }
+
+  torch::Tensor ext_tensor, int_tensor, generator_state;
+  archive.read("value_norm_ext", ext_tensor);
+  archive.read("value_norm_int", int_tensor);
+  archive.read("generator", generator_state);
+  IMCA_ASSIGN_OR_RETURN(RunningMeanVar ext_norm,
+                        RunningMeanVar::FromTensor(ext_tensor, "value_norm_ext"));
+  IMCA_ASSIGN_OR_RETURN(RunningMeanVar int_norm,
+                        RunningMeanVar::FromTensor(int_tensor, "value_norm_int"));
+  at::Generator generator = at::detail::createCPUGenerator();
+  generator.set_state(generator_state);
+
+  model_ = std::move(fresh);
+  ext_norm_ = ext_norm;
+  int_norm_ = int_norm;
+  generator_ = std::move(generator);
+  return absl::OkStatus();
+}
+
+// ---------------------------------------------------------------------------
+
+PpoTrainer::PpoTrainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+PpoTrainer::~PpoTrainer() = default;
+
+absl::StatusOr<std::unique_ptr<PpoTrainer>> PpoTrainer::Create(const PpoConfig& config, int obs_dim,
+                                                               int critic_dim, int num_actions) {
+  const auto invalid = [](const std::string& what) {
+    return absl::InvalidArgumentError(absl::StrCat("PpoTrainer: ", what));
+  };
+  if (obs_dim <= 0) return invalid(absl::StrCat("obs_dim must be > 0, got ", obs_dim));
+  if (critic_dim <= 0) return invalid(absl::StrCat("critic_dim must be > 0, got ", critic_dim));
+  if (num_actions <= 0) return invalid(absl::StrCat("num_actions must be > 0, got ", num_actions));
+  if (config.hidden <= 0) {
+    return invalid(absl::StrCat("config.hidden must be > 0, got ", config.hidden));
+  }
+  if (!(config.learning_rate > 0)) return invalid("config.learning_rate must be > 0");
+  if (!(config.adam_eps > 0)) return invalid("config.adam_eps must be > 0");
+  if (!(config.clip > 0)) return invalid("config.clip must be > 0");
+  if (!(config.value_coef >= 0)) return invalid("config.value_coef must be >= 0");
+  if (!(config.entropy_coef >= 0)) return invalid("config.entropy_coef must be >= 0");
+  if (!(config.max_grad_norm > 0)) return invalid("config.max_grad_norm must be > 0");
+  if (config.epochs <= 0) {
+    return invalid(absl::StrCat("config.epochs must be > 0, got ", config.epochs));
+  }
+  if (config.minibatches <= 0) {
+    return invalid(absl::StrCat("config.minibatches must be > 0, got ", config.minibatches));
+  }
+  if (config.threads <= 0) {
+    return invalid(absl::StrCat("config.threads must be > 0, got ", config.threads));
+  }
+  try {
+    return std::unique_ptr<PpoTrainer>(
+        new PpoTrainer(std::make_unique<Impl>(config, obs_dim, critic_dim, num_actions)));
+  } catch (const c10::Error& e) {
+    return absl::InternalError(absl::StrCat("PpoTrainer: ", e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("PpoTrainer: ", e.what()));
+  }
+}
+
+void PpoTrainer::Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int) {
+  if (batch <= 0) return;
+  torch::NoGradGuard no_grad;
+  // from_blob does not copy; the forward pass only reads its input.
+  const torch::Tensor x = torch::from_blob(const_cast<float*>(critic_inputs),
+                                           {batch, impl_->critic_dim_}, torch::kFloat32);
+  const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
+  const auto v = out.accessor<double, 2>();
+  const RunningMeanVar& ext = impl_->ext_norm_;
+  const RunningMeanVar& intr = impl_->int_norm_;
+  for (int64_t i = 0; i < batch; ++i) {
+    v_ext[i] = static_cast<float>(v[i][0] * ext.stddev() + ext.mean());
+    v_int[i] = static_cast<float>(v[i][1] * intr.stddev() + intr.mean());
+  }
+}
+
+absl::StatusOr<PpoStats> PpoTrainer::Train(const PpoBatch& batch) {
+  IMCA_RETURN_IF_ERROR(impl_->ValidateBatch(batch));
+  try {
+    return impl_->Train(batch);
+  } catch (const c10::Error& e) {
+    return absl::InternalError(absl::StrCat("PPO training failed: ", e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("PPO training failed: ", e.what()));
+  }
+}
+
+v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
+  v1::Policy policy;
+  policy.set_version(version);
+  policy.set_architecture("mlp_tanh");
+  policy.set_obs_dim(impl_->obs_dim_);
+  policy.set_num_actions(impl_->num_actions_);
+  const auto& layers = impl_->model_.actor->layers();
+  for (size_t i = 0; i < layers.size(); ++i) {
+    AddTensor(absl::StrCat("policy.", i, ".weight"), layers[i]->weight, policy);
+    AddTensor(absl::StrCat("policy.", i, ".bias"), layers[i]->bias, policy);
+  }
+  return policy;
+}
+
+absl::Status PpoTrainer::Save(const std::string& path) const {
+  const std::string tmp = path + ".tmp";
+  try {
+    torch::serialize::OutputArchive archive;
+    impl_->WriteTo(archive);
+    archive.save_to(tmp);
+  } catch (const c10::Error& e) {
+    std::remove(tmp.c_str());
+    return absl::InternalError(
+        absl::StrCat("saving checkpoint ", path, ": ", e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    std::remove(tmp.c_str());
+    return absl::InternalError(absl::StrCat("saving checkpoint ", path, ": ", e.what()));
+  }
+  if (absl::Status synced = SyncFile(tmp); !synced.ok()) {
+    std::remove(tmp.c_str());
+    return synced;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int saved_errno = errno;
+    std::remove(tmp.c_str());
+    return absl::InternalError(
+        absl::StrCat("renaming ", tmp, " to ", path, ": ", std::strerror(saved_errno)));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status PpoTrainer::Load(const std::string& path) {
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error& e) {
+    return absl::InternalError(
+        absl::StrCat("reading checkpoint ", path, ": ", e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("reading checkpoint ", path, ": ", e.what()));
+  }
+  // The file parsed; a missing entry or a bad tensor means it does not fit.
+  try {
+    return impl_->ReadFrom(archive, path);
+  } catch (const c10::Error& e) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "checkpoint ", path, " does not fit this trainer: ", e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("checkpoint ", path, " does not fit this trainer: ", e.what()));
+  }
+}
+
+int PpoTrainer::obs_dim() const { return impl_->obs_dim_; }
+int PpoTrainer::critic_dim() const { return impl_->critic_dim_; }
+int PpoTrainer::num_actions() const { return impl_->num_actions_; }
+
+}  // namespace imca::learner

@@ -1,0 +1,448 @@
+#include "learner/ppo_trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <random>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <torch/torch.h>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace imca::learner {
+
+namespace internal {
+// Defined in ppo_trainer.cc.
+torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
+                                   const torch::Tensor& behaviour_log_probs,
+                                   const torch::Tensor& advantages, double clip);
+}  // namespace internal
+
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr int kContexts = 2;
+// The bandit: in context 0 action 1 pays 1, in context 1 action 3 does.
+constexpr int kBanditActions = 5;
+constexpr int kRightAction[kContexts] = {1, 3};
+
+PpoConfig SmallConfig() {
+  PpoConfig config;
+  config.hidden = 16;
+  config.seed = 7;
+  config.threads = 1;
+  return config;
+}
+
+std::unique_ptr<PpoTrainer> MakeTrainer(const PpoConfig& config, int obs_dim = kContexts,
+                                        int critic_dim = kContexts,
+                                        int num_actions = kBanditActions) {
+  auto trainer = PpoTrainer::Create(config, obs_dim, critic_dim, num_actions);
+  EXPECT_TRUE(trainer.ok()) << trainer.status();
+  return trainer.ok() ? std::move(trainer).value() : nullptr;
+}
+
+std::vector<float> OneHot(int context) {
+  std::vector<float> x(kContexts, 0.0f);
+  x[context] = 1.0f;
+  return x;
+}
+
+// An independent evaluator of an exported "mlp_tanh" policy: tanh after every
+// layer but the last, softmax on the last. Double precision.
+std::vector<double> Probabilities(const v1::Policy& policy, const std::vector<float>& obs) {
+  std::map<std::string, const v1::NamedTensor*> by_name;
+  for (const v1::NamedTensor& t : policy.tensors()) by_name[t.name()] = &t;
+  std::vector<double> x(obs.begin(), obs.end());
+  const int layers = policy.tensors_size() / 2;
+  for (int l = 0; l < layers; ++l) {
+    const v1::NamedTensor& w = *by_name.at("policy." + std::to_string(l) + ".weight");
+    const v1::NamedTensor& b = *by_name.at("policy." + std::to_string(l) + ".bias");
+    const int64_t rows = w.shape(0), cols = w.shape(1);
+    std::vector<double> y(rows);
+    for (int64_t r = 0; r < rows; ++r) {
+      double sum = b.data(r);
+      for (int64_t c = 0; c < cols; ++c) sum += w.data(r * cols + c) * x[c];
+      y[r] = (l + 1 < layers) ? std::tanh(sum) : sum;
+    }
+    x = std::move(y);
+  }
+  const double max = *std::max_element(x.begin(), x.end());
+  double total = 0;
+  for (double& v : x) total += (v = std::exp(v - max));
+  for (double& v : x) v /= total;
+  return x;
+}
+
+std::vector<float> AllWeights(const v1::Policy& policy) {
+  std::vector<float> all;
+  for (const v1::NamedTensor& t : policy.tensors())
+    all.insert(all.end(), t.data().begin(), t.data().end());
+  return all;
+}
+
+// Values of the two one-hot critic inputs, as {ext0, ext1, int0, int1}.
+std::vector<float> ContextValues(PpoTrainer& trainer) {
+  std::vector<float> inputs = OneHot(0);
+  const std::vector<float> second = OneHot(1);
+  inputs.insert(inputs.end(), second.begin(), second.end());
+  std::vector<float> v_ext(kContexts), v_int(kContexts);
+  trainer.Values(inputs.data(), kContexts, v_ext.data(), v_int.data());
+  return {v_ext[0], v_ext[1], v_int[0], v_int[1]};
+}
+
+// A batch over alternating contexts with actions drawn from the trainer's
+// current policy; the behaviour log-probs are that policy's.
+PpoBatch BanditBatch(PpoTrainer& trainer, int size, std::mt19937& rng) {
+  const v1::Policy policy = trainer.ExportPolicy(0);
+  const std::vector<float> values = ContextValues(trainer);
+  PpoBatch batch;
+  batch.size = size;
+  for (int i = 0; i < size; ++i) {
+    const int context = i % kContexts;
+    const std::vector<float> x = OneHot(context);
+    const std::vector<double> p = Probabilities(policy, x);
+    const int action = std::discrete_distribution<int>(p.begin(), p.end())(rng);
+    const float reward = action == kRightAction[context] ? 1.0f : 0.0f;
+    batch.obs.insert(batch.obs.end(), x.begin(), x.end());
+    batch.critic_inputs.insert(batch.critic_inputs.end(), x.begin(), x.end());
+    batch.actions.push_back(action);
+    batch.behaviour_log_probs.push_back(static_cast<float>(std::log(p[action])));
+    batch.advantages.push_back(reward - values[context]);
+    batch.returns_ext.push_back(reward);
+    batch.returns_int.push_back(0.0f);
+  }
+  return batch;
+}
+
+// A batch whose returns depend only on the context.
+PpoBatch ConstantReturnBatch(int size, const float (&ext)[kContexts],
+                             const float (&intr)[kContexts]) {
+  PpoBatch batch;
+  batch.size = size;
+  for (int i = 0; i < size; ++i) {
+    const int context = i % kContexts;
+    const std::vector<float> x = OneHot(context);
+    batch.obs.insert(batch.obs.end(), x.begin(), x.end());
+    batch.critic_inputs.insert(batch.critic_inputs.end(), x.begin(), x.end());
+    batch.actions.push_back(0);
+    batch.behaviour_log_probs.push_back(std::log(1.0f / kBanditActions));
+    batch.advantages.push_back(i % 3 == 0 ? 1.0f : -0.5f);
+    batch.returns_ext.push_back(ext[context]);
+    batch.returns_int.push_back(intr[context]);
+  }
+  return batch;
+}
+
+std::string TempPath(const std::string& name) { return ::testing::TempDir() + "/" + name; }
+
+TEST(PpoTrainerTest, CreateRejectsBadSizesAndConfig) {
+  const PpoConfig good = SmallConfig();
+  EXPECT_TRUE(PpoTrainer::Create(good, 3, 4, 5).ok());
+  for (const auto& [obs, critic, actions] :
+       std::vector<std::tuple<int, int, int>>{{0, 4, 5}, {3, 0, 5}, {3, 4, 0}, {-1, 4, 5}}) {
+    const auto t = PpoTrainer::Create(good, obs, critic, actions);
+    EXPECT_EQ(t.status().code(), absl::StatusCode::kInvalidArgument)
+        << obs << " " << critic << " " << actions;
+  }
+  std::vector<PpoConfig> bad(9, good);
+  bad[0].hidden = 0;
+  bad[1].learning_rate = 0;
+  bad[2].adam_eps = -1;
+  bad[3].clip = 0;
+  bad[4].epochs = 0;
+  bad[5].minibatches = 0;
+  bad[6].threads = 0;
+  bad[7].max_grad_norm = 0;
+  bad[8].entropy_coef = -0.1;
+  for (size_t i = 0; i < bad.size(); ++i) {
+    EXPECT_EQ(PpoTrainer::Create(bad[i], 3, 4, 5).status().code(),
+              absl::StatusCode::kInvalidArgument)
+        << "config " << i;
+  }
+}
+
+TEST(PpoTrainerTest, ExportPolicyHasNamesShapesAndInit) {
+  PpoConfig config = SmallConfig();
+  config.hidden = 8;
+  auto trainer = MakeTrainer(config, /*obs_dim=*/3, /*critic_dim=*/6, /*num_actions=*/4);
+  ASSERT_NE(trainer, nullptr);
+  EXPECT_EQ(trainer->obs_dim(), 3);
+  EXPECT_EQ(trainer->critic_dim(), 6);
+  EXPECT_EQ(trainer->num_actions(), 4);
+  const v1::Policy policy = trainer->ExportPolicy(42);
+  EXPECT_EQ(policy.version(), 42);
+  EXPECT_EQ(policy.architecture(), "mlp_tanh");
+  EXPECT_EQ(policy.obs_dim(), 3);
+  EXPECT_EQ(policy.num_actions(), 4);
+  const std::vector<std::pair<std::string, std::vector<int64_t>>> expected = {
+      {"policy.0.weight", {8, 3}}, {"policy.0.bias", {8}},      {"policy.1.weight", {8, 8}},
+      {"policy.1.bias", {8}},      {"policy.2.weight", {4, 8}}, {"policy.2.bias", {4}}};
+  ASSERT_EQ(policy.tensors_size(), static_cast<int>(expected.size()));
+  for (size_t i = 0; i < expected.size(); ++i) {
+    const v1::NamedTensor& t = policy.tensors(i);
+    EXPECT_EQ(t.name(), expected[i].first);
+    EXPECT_EQ(std::vector<int64_t>(t.shape().begin(), t.shape().end()), expected[i].second);
+    int64_t n = 1;
+    for (int64_t d : expected[i].second) n *= d;
+    EXPECT_EQ(t.data_size(), n) << t.name();
+    if (expected[i].second.size() == 1) {
+      for (float b : t.data()) EXPECT_EQ(b, 0.0f) << t.name();
+    }
+  }
+  // Orthogonal init, row-major [out, in]: layer 0 ([8, 3], gain sqrt 2) has
+  // orthogonal columns, W^T W = 2 I; layer 2 ([4, 8], gain 0.01) has
+  // orthogonal rows, W W^T = 1e-4 I.
+  const auto& w0 = policy.tensors(0).data();
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      double dot = 0;
+      for (int r = 0; r < 8; ++r) dot += w0[r * 3 + a] * w0[r * 3 + b];
+      EXPECT_NEAR(dot, a == b ? 2.0 : 0.0, 1e-5) << a << "," << b;
+    }
+  }
+  const auto& w2 = policy.tensors(4).data();
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b) {
+      double dot = 0;
+      for (int c = 0; c < 8; ++c) dot += w2[a * 8 + c] * w2[b * 8 + c];
+      EXPECT_NEAR(dot, a == b ? 1e-4 : 0.0, 1e-9) << a << "," << b;
+    }
+  }
+  // Hence the initial policy is close to uniform.
+  for (double p : Probabilities(policy, {0.3f, -1.0f, 2.0f})) EXPECT_NEAR(p, 0.25, 0.01);
+}
+
+TEST(PpoTrainerTest, SameSeedSameWeights) {
+  auto a = MakeTrainer(SmallConfig());
+  auto b = MakeTrainer(SmallConfig());
+  PpoConfig other = SmallConfig();
+  other.seed = 8;
+  auto c = MakeTrainer(other);
+  ASSERT_TRUE(a && b && c);
+  EXPECT_EQ(AllWeights(a->ExportPolicy(0)), AllWeights(b->ExportPolicy(0)));
+  EXPECT_NE(AllWeights(a->ExportPolicy(0)), AllWeights(c->ExportPolicy(0)));
+}
+
+TEST(PpoTrainerTest, ValuesApproachConstantReturns) {
+  auto trainer = MakeTrainer(SmallConfig());
+  ASSERT_NE(trainer, nullptr);
+  const PpoBatch batch = ConstantReturnBatch(64, {100.0f, 100.0f}, {-3.0f, -3.0f});
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(trainer->Train(batch).ok());
+  const std::vector<float> v = ContextValues(*trainer);
+  EXPECT_NEAR(v[0], 100.0f, 0.5f);
+  EXPECT_NEAR(v[1], 100.0f, 0.5f);
+  EXPECT_NEAR(v[2], -3.0f, 0.5f);
+  EXPECT_NEAR(v[3], -3.0f, 0.5f);
+}
+
+TEST(PpoTrainerTest, ValuesLearnContextDependentReturns) {
+  // Returns 100 / 50 (ext) and 1 / 3 (int): the normalised targets are about
+  // +-1, so the critic itself must separate the contexts.
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  config.max_grad_norm = 10;
+  auto trainer = MakeTrainer(config);
+  ASSERT_NE(trainer, nullptr);
+  const PpoBatch batch = ConstantReturnBatch(64, {100.0f, 50.0f}, {1.0f, 3.0f});
+  for (int i = 0; i < 30; ++i) ASSERT_TRUE(trainer->Train(batch).ok());
+  const std::vector<float> v = ContextValues(*trainer);
+  EXPECT_NEAR(v[0], 100.0f, 2.0f);
+  EXPECT_NEAR(v[1], 50.0f, 2.0f);
+  EXPECT_NEAR(v[2], 1.0f, 0.1f);
+  EXPECT_NEAR(v[3], 3.0f, 0.1f);
+}
+
+TEST(PpoTrainerTest, LearnsContextualBandit) {
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  auto trainer = MakeTrainer(config);
+  ASSERT_NE(trainer, nullptr);
+  std::mt19937 rng(123);
+  PpoStats stats;
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    const auto result = trainer->Train(BanditBatch(*trainer, 256, rng));
+    ASSERT_TRUE(result.ok()) << result.status();
+    stats = *result;
+  }
+  const v1::Policy policy = trainer->ExportPolicy(1);
+  for (int context = 0; context < kContexts; ++context) {
+    const std::vector<double> p = Probabilities(policy, OneHot(context));
+    EXPECT_GT(p[kRightAction[context]], 0.9) << "context " << context;
+  }
+  EXPECT_TRUE(std::isfinite(stats.policy_loss));
+  EXPECT_GT(stats.entropy, 0.0);
+  EXPECT_LT(stats.entropy, std::log(kBanditActions));
+  EXPECT_GE(stats.approx_kl, 0.0);
+  EXPECT_GT(stats.grad_norm, 0.0);
+}
+
+TEST(ClippedSurrogateTest, NoGradientOutsideTheClipRange) {
+  // ratio:      2    1.1   0.5   0.5   2
+  // advantage:  1    1     1    -1    -2
+  // min term:  1.2  1.1   0.5  -0.8  -4     (clipped, -, -, clipped, -)
+  const torch::Tensor behaviour = torch::zeros({5});
+  const torch::Tensor log_probs = torch::tensor({std::log(2.0f), std::log(1.1f), std::log(0.5f),
+                                                 std::log(0.5f), std::log(2.0f)})
+                                      .requires_grad_(true);
+  const torch::Tensor advantages = torch::tensor({1.0f, 1.0f, 1.0f, -1.0f, -2.0f});
+  const torch::Tensor loss =
+      internal::ClippedSurrogateLoss(log_probs, behaviour, advantages, /*clip=*/0.2);
+  EXPECT_NEAR(loss.item<float>(), -(1.2 + 1.1 + 0.5 - 0.8 - 4.0) / 5, 1e-6);
+  loss.backward();
+  // d loss / d log_prob_i = -ratio_i * A_i / 5 where unclipped, else 0.
+  const std::vector<float> expected = {0.0f, -1.1f / 5, -0.5f / 5, 0.0f, 4.0f / 5};
+  const torch::Tensor grad = log_probs.grad();
+  for (int i = 0; i < 5; ++i) EXPECT_NEAR(grad[i].item<float>(), expected[i], 1e-6) << i;
+}
+
+TEST(PpoTrainerTest, FullyClippedBatchLeavesTheActorUnchanged) {
+  // Every ratio is 2 where the advantage is positive and 0.5 where it is
+  // negative: all samples sit in the flat part of the clipped surrogate, so
+  // with no entropy bonus the actor gets exactly zero gradient.
+  PpoConfig config = SmallConfig();
+  config.entropy_coef = 0;
+  config.epochs = 2;
+  config.minibatches = 2;
+  auto trainer = MakeTrainer(config);
+  ASSERT_NE(trainer, nullptr);
+  std::mt19937 rng(5);
+  PpoBatch batch = BanditBatch(*trainer, 64, rng);
+  for (int i = 0; i < batch.size; ++i) {
+    const bool positive = i % 4 < 2;  // Both signs in both contexts.
+    batch.advantages[i] = positive ? 1.0f : -1.0f;
+    batch.behaviour_log_probs[i] += positive ? -std::log(2.0f) : std::log(2.0f);
+  }
+  const std::vector<float> before = AllWeights(trainer->ExportPolicy(0));
+  const auto stats = trainer->Train(batch);
+  ASSERT_TRUE(stats.ok()) << stats.status();
+  EXPECT_DOUBLE_EQ(stats->clip_fraction, 1.0);
+  // Mean of (r - 1) - log r over r = 2 and r = 0.5, equally often.
+  EXPECT_NEAR(stats->approx_kl, 0.5 * ((1 - std::log(2.0)) + (-0.5 + std::log(2.0))), 1e-4);
+  EXPECT_EQ(AllWeights(trainer->ExportPolicy(0)), before);
+}
+
+TEST(PpoTrainerTest, SaveThenLoadRestoresEverything) {
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  auto original = MakeTrainer(config);
+  ASSERT_NE(original, nullptr);
+  std::mt19937 rng(9);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(original->Train(BanditBatch(*original, 64, rng)).ok());
+  const std::string path = TempPath("ppo_trainer_test_checkpoint.pt");
+  ASSERT_TRUE(original->Save(path).ok());
+  EXPECT_FALSE(std::ifstream(path + ".tmp").good()) << "temporary file left behind";
+
+  config.seed = 1234;  // Different initial weights and shuffling.
+  auto restored = MakeTrainer(config);
+  ASSERT_NE(restored, nullptr);
+  ASSERT_NE(AllWeights(restored->ExportPolicy(0)), AllWeights(original->ExportPolicy(0)));
+  const absl::Status load = restored->Load(path);
+  ASSERT_TRUE(load.ok()) << load;
+  EXPECT_EQ(AllWeights(restored->ExportPolicy(0)), AllWeights(original->ExportPolicy(0)));
+  EXPECT_EQ(ContextValues(*restored), ContextValues(*original));
+
+  // Optimiser state, normalisers and shuffling RNG came along too: one more
+  // identical update keeps the two trainers bit-identical.
+  const PpoBatch next = BanditBatch(*original, 64, rng);
+  const auto a = original->Train(next);
+  const auto b = restored->Train(next);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->policy_loss, b->policy_loss);
+  EXPECT_EQ(a->value_loss, b->value_loss);
+  EXPECT_EQ(AllWeights(restored->ExportPolicy(0)), AllWeights(original->ExportPolicy(0)));
+  EXPECT_EQ(ContextValues(*restored), ContextValues(*original));
+  std::remove(path.c_str());
+}
+
+TEST(PpoTrainerTest, LoadRejectsOtherShapesAndMissingFiles) {
+  auto original = MakeTrainer(SmallConfig());
+  ASSERT_NE(original, nullptr);
+  const std::string path = TempPath("ppo_trainer_test_shapes.pt");
+  ASSERT_TRUE(original->Save(path).ok());
+
+  auto wider_obs = MakeTrainer(SmallConfig(), /*obs_dim=*/3);
+  PpoConfig wider = SmallConfig();
+  wider.hidden = 32;
+  auto wider_hidden = MakeTrainer(wider);
+  ASSERT_TRUE(wider_obs && wider_hidden);
+  for (PpoTrainer* t : {wider_obs.get(), wider_hidden.get()}) {
+    const std::vector<float> before = AllWeights(t->ExportPolicy(0));
+    const absl::Status status = t->Load(path);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+    EXPECT_THAT(std::string(status.message()), HasSubstr("hidden"));
+    EXPECT_EQ(AllWeights(t->ExportPolicy(0)), before);
+  }
+  EXPECT_EQ(original->Load(TempPath("no_such_checkpoint.pt")).code(), absl::StatusCode::kInternal);
+  std::remove(path.c_str());
+}
+
+TEST(PpoTrainerTest, InvalidBatchesAreRejectedAndChangeNothing) {
+  auto trainer = MakeTrainer(SmallConfig());
+  ASSERT_NE(trainer, nullptr);
+  std::mt19937 rng(1);
+  const PpoBatch good = BanditBatch(*trainer, 4, rng);
+  const std::vector<float> weights = AllWeights(trainer->ExportPolicy(0));
+  const std::vector<float> values = ContextValues(*trainer);
+
+  struct Case {
+    std::function<void(PpoBatch&)> corrupt;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {[](PpoBatch& b) { b.actions.pop_back(); }, "batch.actions has 3 elements, expected 4"},
+      {[](PpoBatch& b) { b.obs.push_back(0); }, "batch.obs has 9 elements, expected 8"},
+      {[](PpoBatch& b) { b.critic_inputs.clear(); },
+       "batch.critic_inputs has 0 elements, expected 8"},
+      {[](PpoBatch& b) { b.behaviour_log_probs.pop_back(); }, "batch.behaviour_log_probs has 3"},
+      {[](PpoBatch& b) { b.advantages.push_back(1); }, "batch.advantages has 5"},
+      {[](PpoBatch& b) { b.returns_ext.pop_back(); }, "batch.returns_ext has 3"},
+      {[](PpoBatch& b) { b.returns_int.pop_back(); }, "batch.returns_int has 3"},
+      {[](PpoBatch& b) { b.size = 0; }, "batch.size"},
+      {[](PpoBatch& b) { b.actions[2] = kBanditActions; }, "batch.actions[2] = 5 is out of range"},
+      {[](PpoBatch& b) { b.actions[1] = -1; }, "batch.actions[1] = -1 is out of range"},
+      {[](PpoBatch& b) { b.returns_int[3] = NAN; }, "batch.returns_int[3] is not finite"},
+      {[](PpoBatch& b) { b.behaviour_log_probs[0] = 0.5f; }, "batch.behaviour_log_probs[0]"},
+  };
+  for (const Case& c : cases) {
+    PpoBatch bad = good;
+    c.corrupt(bad);
+    const auto result = trainer->Train(bad);
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument) << c.message;
+    EXPECT_THAT(std::string(result.status().message()), HasSubstr(c.message));
+  }
+  EXPECT_EQ(AllWeights(trainer->ExportPolicy(0)), weights);
+  EXPECT_EQ(ContextValues(*trainer), values);  // Normalisers untouched too.
+  EXPECT_TRUE(trainer->Train(good).ok());
+  EXPECT_NE(AllWeights(trainer->ExportPolicy(0)), weights);
+}
+
+TEST(PpoTrainerTest, NonFiniteLossIsInternalAndSkipsTheStep) {
+  PpoConfig config = SmallConfig();
+  config.epochs = 1;
+  config.minibatches = 1;
+  auto trainer = MakeTrainer(config);
+  ASSERT_NE(trainer, nullptr);
+  std::mt19937 rng(2);
+  PpoBatch batch = BanditBatch(*trainer, 8, rng);
+  for (int i = 0; i < batch.size; ++i) batch.advantages[i] = i == 0 ? -1.0f : 1.0f;
+  // A finite but absurd behaviour log-prob: the ratio overflows to inf, and
+  // with a negative advantage the surrogate becomes -inf.
+  batch.behaviour_log_probs[0] = -1e30f;
+  const std::vector<float> before = AllWeights(trainer->ExportPolicy(0));
+  const auto result = trainer->Train(batch);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInternal) << result.status();
+  EXPECT_THAT(std::string(result.status().message()), HasSubstr("non-finite"));
+  EXPECT_EQ(AllWeights(trainer->ExportPolicy(0)), before);
+}
+
+}  // namespace
+}  // namespace imca::learner

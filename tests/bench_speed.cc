@@ -1,0 +1,137 @@
+// ./imca bench speed: the component ceilings of the pipeline, printed as
+// medians over repeated timed rounds (run by hand, never in CI).
+//   env:     joint env steps/s of coop_nav, vectorised, on one core
+//   score:   transitions/s through RewardService.Score over loopback gRPC
+//            (count + imca, 2 agents, one unroll of 64 x 32 per call)
+//   learner: joint env steps/s the learner trains on when fed pre-made
+//            unrolls as fast as it takes them (the ceiling for end-to-end)
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "common/env.h"
+#include "common/grpc_util.h"
+#include "common/rng.h"
+#include "common/test_unrolls.h"
+#include "common/vec_env.h"
+#include "learner/learner.h"
+#include "reward_server/count_scorer.h"
+#include "reward_server/reward_service.h"
+
+namespace imca {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double Seconds(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+double BenchEnv(const env::Scenario& scenario, int rounds) {
+  const int envs = 256, n = scenario.num_agents(), k = scenario.state_size();
+  env::VecEnv vec(&scenario, envs, 1);
+  std::vector<int32_t> actions(envs * n), reached(envs * k);
+  std::vector<float> rewards(envs * n);
+  std::unique_ptr<bool[]> term(new bool[envs]), trunc(new bool[envs]);
+  // Pre-drawn actions: the benchmark measures stepping, not sampling.
+  std::vector<int32_t> pool(1 << 16);
+  Rng rng(5);
+  for (int32_t& u : pool) u = static_cast<int32_t>(rng.Uniform(5));
+  std::vector<double> rates;
+  size_t offset = 0;
+  for (int r = 0; r < rounds; ++r) {
+    const int steps = 2000;
+    const auto start = Clock::now();
+    for (int s = 0; s < steps; ++s) {
+      offset = (offset + envs * n) % (pool.size() - envs * n);
+      vec.Step(pool.data() + offset, rewards.data(), term.get(), trunc.get(), reached.data());
+    }
+    rates.push_back(static_cast<double>(steps) * envs / Seconds(start));
+  }
+  return Median(rates);
+}
+
+double BenchScore(const env::Scenario& scenario, int rounds) {
+  reward::ScorerConfig config;
+  config.credit = reward::Credit::kImca;
+  reward::CountScorer scorer(scenario, config);
+  reward::RewardServiceImpl service(&scenario, &scorer, "count", config, "");
+  int port = 0;
+  auto server = StartServer("127.0.0.1:0", {&service}, &port);
+  if (!server.ok()) return 0;
+  auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+  std::vector<v1::ScoreRequest> requests(8);
+  for (size_t i = 0; i < requests.size(); ++i) {
+    *requests[i].mutable_unroll() = testing::RandomUnroll(scenario, 64, 32, 100 + i);
+  }
+  std::vector<double> rates;
+  for (int r = 0; r < rounds; ++r) {
+    const int calls = 40;
+    const auto start = Clock::now();
+    for (int c = 0; c < calls; ++c) {
+      grpc::ClientContext context;
+      context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+      v1::ScoreResponse response;
+      if (!stub->Score(&context, requests[c % requests.size()], &response).ok()) return 0;
+    }
+    rates.push_back(calls * 64.0 * 32.0 / Seconds(start));
+  }
+  (*server)->Shutdown();
+  return Median(rates);
+}
+
+double BenchLearner(const env::Scenario& scenario, int rounds, int threads) {
+  learner::LearnerConfig config;
+  config.batch_steps = 8192;
+  config.ppo.threads = threads;
+  config.max_policy_lag = 1 << 30;
+  config.queue_capacity = 8;
+  auto learner = learner::Learner::Create(&scenario, config);
+  if (!learner.ok()) return 0;
+  learner::Learner* l = learner->get();
+  std::vector<v1::Unroll> unrolls;
+  for (int i = 0; i < 8; ++i) unrolls.push_back(testing::RandomUnroll(scenario, 64, 32, 200 + i));
+  std::thread trainer([l] { l->Run().ok(); });
+  std::vector<double> rates;
+  int64_t pushed = 0;
+  for (int r = 0; r < rounds + 1; ++r) {
+    const int64_t before = l->Status().env_steps();
+    const auto start = Clock::now();
+    // Four iterations of 8192 steps per round.
+    while (l->Status().env_steps() < before + 4 * 8192) {
+      v1::Unroll u = unrolls[pushed++ % unrolls.size()];
+      u.set_policy_version(l->Status().policy_version());
+      l->Push(std::move(u)).ok();
+    }
+    if (r > 0) rates.push_back((l->Status().env_steps() - before) / Seconds(start));  // r = 0 warms up.
+  }
+  l->Stop();
+  trainer.join();
+  return Median(rates);
+}
+
+}  // namespace
+}  // namespace imca
+
+int main(int argc, char** argv) {
+  using namespace imca;
+  const int rounds = argc > 1 ? std::max(3, std::atoi(argv[1])) : 7;
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  if (!scenario.ok()) return 1;
+  std::printf("env_steps_per_sec %.0f\n", BenchEnv(**scenario, rounds));
+  std::fflush(stdout);
+  std::printf("score_transitions_per_sec %.0f\n", BenchScore(**scenario, rounds));
+  std::fflush(stdout);
+  std::printf("learner_steps_per_sec_1thread %.0f\n", BenchLearner(**scenario, rounds, 1));
+  std::fflush(stdout);
+  std::printf("learner_steps_per_sec_2threads %.0f\n", BenchLearner(**scenario, rounds, 2));
+  return 0;
+}

@@ -1,0 +1,192 @@
+// The three real binaries as separate processes over loopback gRPC.
+#include <signal.h>
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/env.h"
+#include "common/grpc_util.h"
+#include "common/test_unrolls.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "imca/v1/learner_service.grpc.pb.h"
+#include "imca/v1/reward_service.grpc.pb.h"
+#include "tests/subprocess.h"
+
+namespace imca {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::Subprocess;
+using testing::WaitForPortFile;
+
+const std::string kBin = IMCA_BIN_DIR;
+
+std::string TempDir(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("imca_" + name + "_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir.string();
+}
+
+std::unique_ptr<Subprocess> StartRewardServer(const std::string& dir, const std::string& credit,
+                                              int* port) {
+  auto server = std::make_unique<Subprocess>(
+      std::vector<std::string>{kBin + "/reward_server", "--listen=127.0.0.1:0",
+                               "--port_file=" + dir + "/reward.port", "--credit=" + credit,
+                               "--snapshot=" + dir + "/reward_snapshot.bin"},
+      dir + "/reward_server.log");
+  EXPECT_TRUE(server->Start());
+  *port = WaitForPortFile(dir + "/reward.port", *server, std::chrono::seconds(30));
+  EXPECT_GT(*port, 0) << server->Log();
+  return server;
+}
+
+v1::ScoreResponse DryRunScore(int port, const env::Scenario& scenario) {
+  auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+  v1::ScoreRequest request;
+  *request.mutable_unroll() = testing::RandomUnroll(scenario, 16, 4, 99);
+  request.set_dry_run(true);
+  grpc::ClientContext context;
+  context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+  v1::ScoreResponse response;
+  const grpc::Status status = stub->Score(&context, request, &response);
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  return response;
+}
+
+std::unique_ptr<env::Scenario> DefaultScenario() {
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  EXPECT_TRUE(scenario.ok());
+  return *std::move(scenario);
+}
+
+TEST(IntegrationTest, ThreeServicesTrainAndStopCleanly) {
+  const std::string dir = TempDir("pipeline");
+  const auto scenario = DefaultScenario();
+  int reward_port = 0;
+  auto reward_server = StartRewardServer(dir, "imca", &reward_port);
+  ASSERT_GT(reward_port, 0);
+
+  Subprocess learner({kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port",
+                      "--run_dir=" + dir + "/run", "--steps=0", "--batch_steps=1024",
+                      "--checkpoint_every=2"},
+                     dir + "/learner.log");
+  ASSERT_TRUE(learner.Start());
+  const int learner_port = WaitForPortFile(dir + "/learner.port", learner, std::chrono::seconds(60));
+  ASSERT_GT(learner_port, 0) << learner.Log();
+
+  std::vector<std::unique_ptr<Subprocess>> actors;
+  for (int i = 0; i < 2; ++i) {
+    actors.push_back(std::make_unique<Subprocess>(
+        std::vector<std::string>{kBin + "/actor", "--learner=127.0.0.1:" + std::to_string(learner_port),
+                                 "--reward_server=127.0.0.1:" + std::to_string(reward_port),
+                                 "--envs=8", "--unroll_length=32", "--seed=" + std::to_string(i + 1),
+                                 "--actor_id=actor-" + std::to_string(i)},
+        dir + "/actor-" + std::to_string(i) + ".log"));
+    ASSERT_TRUE(actors.back()->Start());
+  }
+
+  auto learner_stub = v1::LearnerService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(learner_port)));
+  v1::LearnerStatus status;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(180);
+  while (std::chrono::steady_clock::now() < deadline) {
+    grpc::ClientContext context;
+    context.set_deadline(DeadlineIn(std::chrono::seconds(5)));
+    ASSERT_TRUE(learner_stub->GetStatus(&context, v1::GetStatusRequest(), &status).ok());
+    if (status.policy_version() >= 4 && status.actors_seen_size() == 2) break;
+    for (auto& actor : actors) ASSERT_FALSE(actor->Poll()) << actor->Log();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  EXPECT_GE(status.policy_version(), 4);
+  EXPECT_THAT(status.actors_seen(), ::testing::UnorderedElementsAre("actor-0", "actor-1"));
+  EXPECT_GE(status.env_steps(), 4 * 1024);
+
+  // The reward server scored what the actors sent.
+  auto reward_stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  grpc::ClientContext stats_context;
+  v1::RewardStats stats;
+  ASSERT_TRUE(reward_stub->GetStats(&stats_context, v1::GetStatsRequest(), &stats).ok());
+  EXPECT_GE(stats.transitions_scored(), status.env_steps());
+  EXPECT_GT(stats.distinct_keys(), 100);
+
+  // Bonuses are non-zero and split by imca's softmax shares.
+  const v1::ScoreResponse response = DryRunScore(reward_port, *scenario);
+  int uneven = 0;
+  for (int i = 0; i < response.num_transitions(); ++i) {
+    EXPECT_GT(response.global_rewards(i), 0.0f);
+    EXPECT_NEAR(response.agent_rewards(2 * i) + response.agent_rewards(2 * i + 1), response.global_rewards(i), 1e-5);
+    EXPECT_NEAR(response.agent_rewards(2 * i), response.shares(2 * i) * response.global_rewards(i), 1e-5);
+    uneven += std::abs(response.shares(2 * i) - 0.5f) > 1e-3f;
+  }
+  EXPECT_GT(uneven, 0) << "after training, some transitions must credit one agent more";
+
+  // The learner's metrics saw the intrinsic rewards the reward server gave.
+  std::ifstream metrics(dir + "/run/metrics.csv");
+  std::string header, row, last;
+  std::getline(metrics, header);
+  while (std::getline(metrics, row)) last = row;
+  ASSERT_FALSE(last.empty());
+
+  for (auto& actor : actors) {
+    actor->Signal(SIGTERM);
+    EXPECT_EQ(actor->Wait(std::chrono::seconds(30)), 0) << actor->Log();
+  }
+  learner.Signal(SIGTERM);
+  EXPECT_EQ(learner.Wait(std::chrono::seconds(60)), 0) << learner.Log();
+  reward_server->Signal(SIGTERM);
+  EXPECT_EQ(reward_server->Wait(std::chrono::seconds(30)), 0) << reward_server->Log();
+  EXPECT_TRUE(fs::exists(dir + "/reward_snapshot.bin"));
+  bool checkpoint = false;
+  for (const auto& entry : fs::directory_iterator(dir + "/run/checkpoints")) {
+    checkpoint |= entry.path().extension() == ".pt";
+  }
+  EXPECT_TRUE(checkpoint);
+}
+
+TEST(IntegrationTest, EachCreditModeSplitsAsDocumented) {
+  const auto scenario = DefaultScenario();
+  for (const std::string credit : {"none", "shared", "independent"}) {
+    const std::string dir = TempDir("credit_" + credit);
+    int port = 0;
+    auto server = StartRewardServer(dir, credit, &port);
+    ASSERT_GT(port, 0);
+    const v1::ScoreResponse r = DryRunScore(port, *scenario);
+    for (int i = 0; i < r.num_transitions(); ++i) {
+      const float a = r.agent_rewards(2 * i), b = r.agent_rewards(2 * i + 1);
+      if (credit == "none") {
+        EXPECT_EQ(a, 0.0f);
+        EXPECT_EQ(b, 0.0f);
+      } else if (credit == "shared") {
+        EXPECT_GT(a, 0.0f);
+        EXPECT_EQ(a, r.global_rewards(i));
+        EXPECT_EQ(b, r.global_rewards(i));
+      } else {
+        EXPECT_GT(a, 0.0f);
+        EXPECT_NEAR(a + b, r.global_rewards(i), 1e-5);  // Reported as the team sum.
+      }
+    }
+    server->Signal(SIGTERM);
+    EXPECT_EQ(server->Wait(std::chrono::seconds(30)), 0) << server->Log();
+  }
+}
+
+TEST(IntegrationTest, PortInUseIsAOneLineError) {
+  const std::string dir = TempDir("port");
+  int port = 0;
+  auto first = StartRewardServer(dir, "imca", &port);
+  ASSERT_GT(port, 0);
+  Subprocess second({kBin + "/reward_server", "--listen=127.0.0.1:" + std::to_string(port)},
+                    dir + "/second.log");
+  ASSERT_TRUE(second.Start());
+  EXPECT_EQ(second.Wait(std::chrono::seconds(30)), 2);
+  EXPECT_THAT(second.Log(), ::testing::HasSubstr("--listen: cannot listen on 127.0.0.1:" + std::to_string(port)));
+  first->Signal(SIGTERM);
+  EXPECT_EQ(first->Wait(std::chrono::seconds(30)), 0);
+}
+
+}  // namespace
+}  // namespace imca

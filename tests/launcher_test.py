@@ -1,0 +1,94 @@
+#!/usr/bin/python3
+"""./imca train's launcher (tools/launch.py) against the real binaries."""
+import csv
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
+SMALL = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--batch-steps", "1024", "--quiet"]
+
+
+def run(args, timeout=300):
+    return subprocess.run(LAUNCH + args, capture_output=True, text=True, timeout=timeout)
+
+
+class LauncherErrorsTest(unittest.TestCase):
+    def test_bad_flag_names_it(self):
+        r = run(["--credit", "bogus"])
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--credit", r.stderr)
+
+    def test_missing_map_names_it(self):
+        r = run(["--map", "/nonexistent/map.txt"])
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--map", r.stderr)
+        self.assertIn("/nonexistent/map.txt", r.stderr)
+
+    def test_port_in_use_is_one_line(self):
+        with socket.socket() as s, tempfile.TemporaryDirectory() as out:
+            s.bind(("127.0.0.1", 0))
+            s.listen(1)
+            port = s.getsockname()[1]
+            r = run(["--reward-port", str(port), "--out", os.path.join(out, "run")] + SMALL, timeout=60)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            lines = [l for l in r.stderr.splitlines() if l.strip()]
+            self.assertEqual(len(lines), 1, r.stderr)
+            self.assertIn(f"127.0.0.1:{port}", lines[0])
+
+
+class LauncherRunTest(unittest.TestCase):
+    def test_short_run_leaves_a_complete_run_folder(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "run")
+            r = run(["--steps", "12000", "--out", out] + SMALL)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            for name in ["config.json", "metrics.csv", "learning_curve.png", "summary.json"]:
+                self.assertTrue(os.path.exists(os.path.join(out, name)), name)
+            with open(os.path.join(out, "metrics.csv")) as f:
+                rows = list(csv.DictReader(f))
+            self.assertGreaterEqual(len(rows), 2)
+            for column in ["env_steps", "wall_seconds", "success_rate", "episode_return", "intrinsic_reward"]:
+                self.assertIn(column, rows[0])
+            self.assertGreater(max(float(r["intrinsic_reward"]) for r in rows), 0.0)
+            with open(os.path.join(out, "summary.json")) as f:
+                summary = json.load(f)
+            self.assertGreaterEqual(summary["env_steps"], 12000)
+            for key in ["wall_seconds", "env_steps_per_sec", "final_success_rate"]:
+                self.assertIn(key, summary)
+            self.assertTrue(any(p.endswith(".pt") for p in os.listdir(os.path.join(out, "checkpoints"))))
+            with open(os.path.join(out, "logs", "exit_codes.json")) as f:
+                codes = json.load(f)
+            self.assertEqual(set(codes.values()), {0}, codes)
+
+    def test_interrupt_stops_everything_and_leaves_a_valid_folder(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "run")
+            proc = subprocess.Popen(LAUNCH + ["--steps", "100000000", "--out", out] + SMALL,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            deadline = time.time() + 120
+            metrics = os.path.join(out, "metrics.csv")
+            while time.time() < deadline and not (os.path.exists(metrics) and os.path.getsize(metrics) > 200):
+                time.sleep(0.2)
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=120)
+            self.assertEqual(proc.returncode, 130, err)
+            with open(os.path.join(out, "summary.json")) as f:
+                summary = json.load(f)
+            self.assertTrue(summary["interrupted"])
+            self.assertGreater(summary["env_steps"], 0)
+            with open(os.path.join(out, "logs", "exit_codes.json")) as f:
+                codes = json.load(f)
+            self.assertEqual(set(codes.values()), {0}, codes)
+            self.assertTrue(os.path.exists(os.path.join(out, "learning_curve.png")))
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)

@@ -1,0 +1,302 @@
+#!/usr/bin/python3
+"""./imca train: one reward server, one learner and N actors on loopback.
+
+Starts the three services as separate processes on free ports, shows a live
+progress line, and leaves a run folder (see README.md, "What a run leaves").
+Ctrl-C stops every process in order (actors, learner, reward server) and still
+leaves a valid run folder.
+"""
+import argparse
+import csv
+import datetime
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
+SCENARIOS = ["coop_nav"]
+REWARDS = ["count"]
+CREDITS = ["none", "independent", "shared", "imca"]
+PERMUTATIONS = ["off", "random", "canonical"]
+
+
+class LaunchError(Exception):
+    """A one-line, user-facing error."""
+
+
+def positive_int(text):
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
+    return value
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="imca train", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--scenario", default="coop_nav", choices=SCENARIOS)
+    p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
+    p.add_argument("--reward", default="count", choices=REWARDS, help="global novelty kind")
+    p.add_argument("--credit", default="imca", choices=CREDITS)
+    p.add_argument("--permutation", default="off", choices=PERMUTATIONS)
+    p.add_argument("--beta", type=float, default=0.5, help="coefficient of the global bonus")
+    p.add_argument("--temperature", type=float, default=1.0, help="softmax temperature of the shares")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--actors", type=positive_int, default=2)
+    p.add_argument("--envs-per-actor", type=positive_int, default=32)
+    p.add_argument("--unroll-length", type=positive_int, default=64)
+    p.add_argument("--steps", type=positive_int, default=2_000_000, help="budget in joint env steps")
+    p.add_argument("--batch-steps", type=positive_int, default=8192, help="joint env steps per PPO iteration")
+    p.add_argument("--lr", type=float, default=5e-4)
+    p.add_argument("--entropy-coef", type=float, default=0.01)
+    p.add_argument("--intrinsic-coef", type=float, default=1.0)
+    p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
+    p.add_argument("--reward-port", type=int, default=0, help="reward server port (0: a free one)")
+    p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    args = p.parse_args(argv)
+    if args.beta < 0:
+        p.error("argument --beta: must be >= 0")
+    if args.temperature <= 0:
+        p.error("argument --temperature: must be > 0")
+    if args.map and not os.path.isfile(args.map):
+        p.error(f"argument --map: no such file '{args.map}'")
+    if args.envs_per_actor * args.unroll_length > 65536:
+        p.error("--envs-per-actor * --unroll-length must be <= 65536")
+    return args
+
+
+class Services:
+    """The child processes of one run, stopped in dependency order."""
+
+    def __init__(self, run_dir):
+        self.run_dir = run_dir
+        self.logs = os.path.join(run_dir, "logs")
+        os.makedirs(self.logs, exist_ok=True)
+        self.procs = []  # (name, Popen), in start order.
+
+    def start(self, name, argv):
+        log = open(os.path.join(self.logs, name + ".log"), "ab")
+        # A new session: the terminal's Ctrl-C reaches only this launcher,
+        # which then stops the children in order.
+        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+                                env=dict(os.environ, OMP_WAIT_POLICY="passive"))
+        self.procs.append((name, proc))
+        return proc
+
+    def last_log_line(self, name):
+        try:
+            with open(os.path.join(self.logs, name + ".log"), errors="replace") as f:
+                lines = [l.strip() for l in f if l.strip()]
+            return lines[-1] if lines else f"{name} exited"
+        except OSError:
+            return f"{name} exited"
+
+    def wait_port(self, name, proc, port_file, timeout=30.0):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            if proc.poll() is not None:
+                raise LaunchError(self.last_log_line(name))
+            try:
+                with open(port_file) as f:
+                    text = f.read().strip()
+                if text:
+                    return int(text)
+            except OSError:
+                pass
+            time.sleep(0.05)
+        raise LaunchError(f"{name} did not start serving within {timeout:.0f} s")
+
+    def check_alive(self, names):
+        """Raises if one of `names` failed (actors exit 0 once the learner is done)."""
+        for name, proc in self.procs:
+            if name in names and proc.poll() is not None and proc.returncode != 0:
+                raise LaunchError(f"{name} exited with code {proc.returncode}: {self.last_log_line(name)}")
+
+    def stop(self, names=None, timeout=30.0):
+        """SIGTERM then wait; returns {name: exit code}."""
+        codes = {}
+        for name, proc in self.procs:
+            if names is not None and name not in names:
+                continue
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+            try:
+                codes[name] = proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                codes[name] = proc.wait()
+        return codes
+
+
+def read_metrics(path):
+    try:
+        with open(path) as f:
+            return list(csv.DictReader(f))
+    except OSError:
+        return []
+
+
+def fmt_duration(seconds):
+    seconds = int(max(seconds, 0))
+    if seconds >= 3600:
+        return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m"
+    return f"{seconds // 60}m{seconds % 60:02d}s"
+
+
+def progress_line(row, budget):
+    steps = int(row["env_steps"])
+    rate = float(row["env_steps_per_sec"])
+    eta = (budget - steps) / rate if rate > 0 else 0
+    return (f"steps {steps:,}/{budget:,} | {rate:,.0f} steps/s | success {float(row['success_rate']):.1%}"
+            f" | return {float(row['episode_return']):.2f} | intrinsic {float(row['intrinsic_reward']):.4f}"
+            f" | ETA {fmt_duration(eta)}")
+
+
+def steps_to(rows, threshold):
+    for row in rows:
+        if float(row["success_rate"]) >= threshold:
+            return int(row["env_steps"])
+    return None
+
+
+def write_summary(run_dir, config, rows, interrupted):
+    last = rows[-1] if rows else None
+    summary = {
+        "env_steps": int(last["env_steps"]) if last else 0,
+        "wall_seconds": float(last["wall_seconds"]) if last else 0.0,
+        "env_steps_per_sec": float(last["env_steps_per_sec"]) if last else 0.0,
+        "final_success_rate": float(last["success_rate"]) if last else 0.0,
+        "final_train_success_rate": float(last["train_success_rate"]) if last else 0.0,
+        "final_episode_return": float(last["episode_return"]) if last else 0.0,
+        "steps_to_80pct_success": steps_to(rows, 0.8),
+        "steps_to_90pct_success": steps_to(rows, 0.9),
+        "iterations": len(rows),
+        "interrupted": interrupted,
+        "scenario": config["scenario"], "reward": config["reward"], "credit": config["credit"],
+        "permutation": config["permutation"], "seed": config["seed"],
+    }
+    with open(os.path.join(run_dir, "summary.json"), "w") as f:
+        json.dump(summary, f, indent=2)
+    return summary
+
+
+def plot(run_dir, rows, title):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    steps = [int(r["env_steps"]) for r in rows]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+    series = [("success_rate", "evaluation success rate"), ("episode_return", "episode return (team)"),
+              ("intrinsic_reward", "mean intrinsic reward / agent-step")]
+    for ax, (key, label) in zip(axes, series):
+        ax.plot(steps, [float(r[key]) for r in rows], lw=1.5)
+        ax.set_xlabel("env steps")
+        ax.set_title(label, fontsize=10)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylim(-0.02, 1.02)
+    fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    fig.savefig(os.path.join(run_dir, "learning_curve.png"), dpi=110)
+    plt.close(fig)
+
+
+def run(args):
+    run_dir = args.out or os.path.join("runs", datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
+    run_dir = os.path.abspath(run_dir)
+    if os.path.exists(os.path.join(run_dir, "metrics.csv")):
+        raise LaunchError(f"--out: '{run_dir}' already holds a run")
+    os.makedirs(run_dir, exist_ok=True)
+    config = {k: v for k, v in vars(args).items() if k not in ("quiet",)}
+    config["map"] = os.path.abspath(args.map) if args.map else os.path.join(ROOT, "maps", args.scenario + ".txt")
+    with open(os.path.join(run_dir, "config.json"), "w") as f:
+        json.dump(config, f, indent=2)
+
+    scenario_flags = [f"--scenario={args.scenario}", f"--map={config['map']}"]
+    services = Services(run_dir)
+    rows = []
+    interrupted = False
+    stop_requested = []
+    signal.signal(signal.SIGTERM, lambda *_: stop_requested.append(1))
+    try:
+        reward_port_file = os.path.join(run_dir, "logs", "reward_server.port")
+        learner_port_file = os.path.join(run_dir, "logs", "learner.port")
+        for path in (reward_port_file, learner_port_file):
+            if os.path.exists(path):
+                os.remove(path)
+        rs = services.start("reward_server", [
+            os.path.join(BIN, "reward_server"), f"--listen=127.0.0.1:{args.reward_port}",
+            f"--port_file={reward_port_file}", *scenario_flags, f"--reward={args.reward}",
+            f"--credit={args.credit}", f"--permutation={args.permutation}", f"--beta={args.beta}",
+            f"--temperature={args.temperature}", f"--seed={args.seed}",
+            f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}"])
+        reward_port = services.wait_port("reward_server", rs, reward_port_file)
+        ln = services.start("learner", [
+            os.path.join(BIN, "learner"), f"--listen=127.0.0.1:{args.learner_port}",
+            f"--port_file={learner_port_file}", *scenario_flags, f"--run_dir={run_dir}",
+            f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--lr={args.lr}",
+            f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
+            f"--seed={args.seed}"])
+        learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)
+        actors = []
+        for i in range(args.actors):
+            name = f"actor-{i}"
+            actors.append(name)
+            services.start(name, [
+                os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port}",
+                f"--reward_server=127.0.0.1:{reward_port}", *scenario_flags,
+                f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
+                f"--seed={args.seed * 1000 + i}", f"--actor_id={name}"])
+        tty = sys.stderr.isatty()
+        last_print = 0.0
+        while ln.poll() is None:
+            if stop_requested:
+                raise KeyboardInterrupt
+            time.sleep(0.5)
+            services.check_alive(["reward_server"] + actors)
+            rows = read_metrics(os.path.join(run_dir, "metrics.csv"))
+            if rows and not args.quiet and (tty or time.time() - last_print > 10):
+                line = progress_line(rows[-1], args.steps)
+                print(("\r" + line + "\033[K") if tty else line, end="" if tty else "\n",
+                      file=sys.stderr, flush=True)
+                last_print = time.time()
+        if ln.returncode != 0:
+            raise LaunchError(f"learner exited with code {ln.returncode}: {services.last_log_line('learner')}")
+    except KeyboardInterrupt:
+        interrupted = True
+        print("\nimca train: stopping (actors, learner, reward server)...", file=sys.stderr)
+    finally:
+        codes = services.stop(names=[n for n, _ in services.procs if n.startswith("actor-")])
+        codes.update(services.stop(names=["learner"], timeout=120))
+        codes.update(services.stop(names=["reward_server"], timeout=120))
+        with open(os.path.join(run_dir, "logs", "exit_codes.json"), "w") as f:
+            json.dump(codes, f, indent=2)
+        rows = read_metrics(os.path.join(run_dir, "metrics.csv"))
+        write_summary(run_dir, config, rows, interrupted)
+        if rows:
+            plot(run_dir, rows, f"{args.scenario} / {args.reward} / credit={args.credit} / "
+                                f"permutation={args.permutation} / seed={args.seed}")
+    if not args.quiet:
+        print(file=sys.stderr)
+    summary = json.load(open(os.path.join(run_dir, "summary.json")))
+    print(f"imca train: {summary['env_steps']:,} env steps in {summary['wall_seconds']:.0f} s "
+          f"({summary['env_steps_per_sec']:,.0f}/s), final success rate {summary['final_success_rate']:.1%}; "
+          f"run folder {run_dir}")
+    return 130 if interrupted else 0
+
+
+def main(argv):
+    args = parse_args(argv)
+    try:
+        return run(args)
+    except LaunchError as error:
+        print(f"imca train: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
