@@ -30,7 +30,7 @@ struct LearnerConfig {
   double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int.
   int64_t batch_steps = 4096;     // Joint env steps (T*E summed over unrolls) per iteration.
   int max_policy_lag = 4;         // Unrolls older than this many versions are dropped.
-  int queue_capacity = 32;        // Unrolls waiting for training; Push blocks beyond it.
+  int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
   int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
   std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
   int checkpoint_every = 50;      // Iterations between checkpoints (0: only at the end).

@@ -33,6 +33,7 @@ ABSL_FLAG(double, lambda, 0.95, "GAE lambda");
 ABSL_FLAG(double, intrinsic_coef, 1.0, "c_int: weight of the intrinsic advantage");
 ABSL_FLAG(int, hidden, 64, "hidden layer width");
 ABSL_FLAG(int, max_policy_lag, 4, "drop unrolls older than this many policy versions");
+ABSL_FLAG(int, queue_capacity, 4, "unrolls waiting for training before PushUnrolls blocks the actors");
 ABSL_FLAG(int, checkpoint_every, 50, "iterations between checkpoints");
 ABSL_FLAG(uint64_t, seed, 1, "seed of network initialisation and minibatch shuffling");
 ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads");
@@ -74,6 +75,7 @@ int main(int argc, char** argv) {
   config.intrinsic_coef = absl::GetFlag(FLAGS_intrinsic_coef);
   config.batch_steps = absl::GetFlag(FLAGS_batch_steps);
   config.max_policy_lag = absl::GetFlag(FLAGS_max_policy_lag);
+  config.queue_capacity = absl::GetFlag(FLAGS_queue_capacity);
   config.budget_steps = absl::GetFlag(FLAGS_steps);
   config.run_dir = absl::GetFlag(FLAGS_run_dir);
   config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);

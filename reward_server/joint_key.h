@@ -12,8 +12,8 @@ namespace imca::reward {
 // A joint key encodes the object bits z and the agents' (cell, action) pairs
 // in a slot order given by the caller (identity, canonical or a random
 // permutation). When z bits + n * (cell bits + action bits) fit in 64 bits the
-// key is the exact bit-packing of those fields (no collisions: coop_nav 15x15
-// with 2 agents needs 24 bits); otherwise it is a 64-bit mix of the same
+// key is the exact bit-packing of those fields (no collisions: coop_nav 45x7
+// with 2 agents needs 26 bits); otherwise it is a 64-bit mix of the same
 // fields, where two distinct pairs collide with probability 2^-64 and the
 // chance of any collision among N keys is about N^2 / 2^65 (3e-4 at 10^8
 // keys); a collision merges two counts, which only lowers two bonuses.
