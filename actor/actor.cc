@@ -163,7 +163,7 @@ void Actor::CloseStream() {
   stream_unrolls_ = 0;
 }
 
-absl::Status Actor::Push(const v1::Unroll& unroll) {
+absl::Status Actor::Push(v1::Unroll* unroll) {
   if (stream_ != nullptr && stream_unrolls_ >= config_.unrolls_per_stream) CloseStream();
   if (stream_ == nullptr) {
     stream_context_ = std::make_unique<grpc::ClientContext>();
@@ -173,10 +173,11 @@ absl::Status Actor::Push(const v1::Unroll& unroll) {
     stream_ = learner_->PushUnrolls(stream_context_.get());
   }
   v1::PushUnrollsRequest request;
-  // Const unroll: the copy here is the cost of one memcpy of the packed fields.
-  *request.mutable_unroll() = unroll;
+  request.mutable_unroll()->Swap(unroll);
   v1::PushUnrollsResponse ack;
-  if (!stream_->Write(request) || !stream_->Read(&ack)) {
+  const bool sent = stream_->Write(request);
+  unroll->Swap(request.mutable_unroll());
+  if (!sent || !stream_->Read(&ack)) {
     const grpc::Status status = stream_->Finish();
     stream_.reset();
     stream_context_.reset();
@@ -199,11 +200,12 @@ bool Actor::LearnerDone() {
 absl::Status Actor::Run() {
   if (!RefreshPolicy(/*wait=*/true)) return policy_error_;
   Backoff backoff;
+  v1::Unroll unroll;  // Reused: Clear() keeps the packed fields' capacity.
   while (!ShutdownRequested()) {
-    v1::Unroll unroll;
+    unroll.Clear();
     Rollout(&unroll);
     absl::Status status = Score(&unroll);
-    if (status.ok()) status = Push(unroll);
+    if (status.ok()) status = Push(&unroll);
     if (status.ok()) {
       ++unrolls_pushed_;
       backoff.Reset();

@@ -56,7 +56,8 @@ class Actor {
   void SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
                      float* probs);
   absl::Status Score(v1::Unroll* unroll);
-  absl::Status Push(const v1::Unroll& unroll);
+  // Sends *unroll (moved in and back out, not copied) and waits for its ack.
+  absl::Status Push(v1::Unroll* unroll);
   void CloseStream();
   bool LearnerDone();
 

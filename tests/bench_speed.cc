@@ -5,9 +5,12 @@
 //            (count + imca, 2 agents, one unroll of 64 x 32 per call)
 //   learner: joint env steps/s the learner trains on when fed pre-made
 //            unrolls as fast as it takes them (the ceiling for end-to-end)
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -88,6 +91,33 @@ double BenchScore(const env::Scenario& scenario, int rounds) {
   return Median(rates);
 }
 
+// Resident set size in MiB.
+double RssMiB() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return resident * (sysconf(_SC_PAGESIZE) / 1048576.0);
+}
+
+// Tens of millions of keys: insert `keys` distinct keys, then probe them.
+void BenchCountTable(int64_t keys) {
+  const double rss_before = RssMiB();
+  reward::CountTable table;
+  uint64_t state = 1;
+  auto start = Clock::now();
+  for (int64_t i = 0; i < keys; ++i) table.Increment(Rng::SplitMix64(state));
+  const double insert_s = Seconds(start);
+  state = 1;
+  start = Clock::now();
+  uint64_t sum = 0;
+  for (int64_t i = 0; i < keys; ++i) sum += table.Get(Rng::SplitMix64(state));
+  const double probe_s = Seconds(start);
+  std::printf("count_table_keys %lld\ncount_table_insert_ns %.1f\ncount_table_probe_ns %.1f\n"
+              "count_table_rss_mib %.0f\ncount_table_counts_sum %llu\n",
+              static_cast<long long>(table.size()), insert_s * 1e9 / keys, probe_s * 1e9 / keys,
+              RssMiB() - rss_before, static_cast<unsigned long long>(sum));
+}
+
 double BenchLearner(const env::Scenario& scenario, int rounds, int threads) {
   learner::LearnerConfig config;
   config.batch_steps = 8192;
@@ -133,5 +163,7 @@ int main(int argc, char** argv) {
   std::printf("learner_steps_per_sec_1thread %.0f\n", BenchLearner(**scenario, rounds, 1));
   std::fflush(stdout);
   std::printf("learner_steps_per_sec_2threads %.0f\n", BenchLearner(**scenario, rounds, 2));
+  std::fflush(stdout);
+  BenchCountTable(20'000'000);
   return 0;
 }

@@ -89,6 +89,19 @@ class LauncherRunTest(unittest.TestCase):
             self.assertEqual(set(codes.values()), {0}, codes)
             self.assertTrue(os.path.exists(os.path.join(out, "learning_curve.png")))
 
+            # --resume continues from the checkpoint: steps and versions go on.
+            with open(os.path.join(out, "metrics.csv")) as f:
+                before = list(csv.DictReader(f))
+            budget = int(before[-1]["env_steps"]) + 4096
+            r = run(["--resume", out, "--steps", str(budget), "--quiet"])
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(out, "metrics.csv")) as f:
+                after = list(csv.DictReader(f))
+            self.assertGreater(len(after), len(before))
+            self.assertGreater(int(after[len(before)]["env_steps"]), int(before[-1]["env_steps"]))
+            self.assertGreater(int(after[len(before)]["policy_version"]), int(before[-1]["policy_version"]))
+            self.assertGreaterEqual(int(after[-1]["env_steps"]), budget)
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)

@@ -57,8 +57,20 @@ def parse_args(argv):
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
     p.add_argument("--reward-port", type=int, default=0, help="reward server port (0: a free one)")
     p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
+    p.add_argument("--resume", default="", metavar="RUN_DIR",
+                   help="continue a stopped run in RUN_DIR with its saved config; --steps is the total budget")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     args = p.parse_args(argv)
+    if args.resume:
+        config_path = os.path.join(args.resume, "config.json")
+        if not os.path.isfile(config_path) or not os.path.isdir(os.path.join(args.resume, "checkpoints")):
+            p.error(f"argument --resume: '{args.resume}' holds no run (config.json and checkpoints/)")
+        with open(config_path) as f:
+            saved = json.load(f)
+        for key, value in saved.items():
+            if key not in ("steps", "out", "resume", "reward_port", "learner_port") and hasattr(args, key):
+                setattr(args, key, value)
+        args.out = args.resume
     if args.beta < 0:
         p.error("argument --beta: must be >= 0")
     if args.temperature <= 0:
@@ -208,11 +220,13 @@ def plot(run_dir, rows, title):
 def run(args):
     run_dir = args.out or os.path.join("runs", datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
     run_dir = os.path.abspath(run_dir)
-    if os.path.exists(os.path.join(run_dir, "metrics.csv")):
-        raise LaunchError(f"--out: '{run_dir}' already holds a run")
+    if os.path.exists(os.path.join(run_dir, "metrics.csv")) and not args.resume:
+        raise LaunchError(f"--out: '{run_dir}' already holds a run (use --resume to continue it)")
     os.makedirs(run_dir, exist_ok=True)
     config = {k: v for k, v in vars(args).items() if k not in ("quiet",)}
-    config["map"] = os.path.abspath(args.map) if args.map else os.path.join(ROOT, "maps", args.scenario + ".txt")
+    if not args.map:
+        config["map"] = os.path.join(ROOT, "maps", args.scenario + ".txt")
+    config["map"] = os.path.abspath(config["map"])
     with open(os.path.join(run_dir, "config.json"), "w") as f:
         json.dump(config, f, indent=2)
 
@@ -240,7 +254,7 @@ def run(args):
             f"--port_file={learner_port_file}", *scenario_flags, f"--run_dir={run_dir}",
             f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
-            f"--seed={args.seed}"])
+            f"--seed={args.seed}"] + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
         learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)
         actors = []
         for i in range(args.actors):
@@ -282,7 +296,8 @@ def run(args):
                                 f"permutation={args.permutation} / seed={args.seed}")
     if not args.quiet:
         print(file=sys.stderr)
-    summary = json.load(open(os.path.join(run_dir, "summary.json")))
+    with open(os.path.join(run_dir, "summary.json")) as f:
+        summary = json.load(f)
     print(f"imca train: {summary['env_steps']:,} env steps in {summary['wall_seconds']:.0f} s "
           f"({summary['env_steps_per_sec']:,.0f}/s), final success rate {summary['final_success_rate']:.1%}; "
           f"run folder {run_dir}")
