@@ -4,6 +4,8 @@
 #include <memory>
 #include <string>
 
+#include <grpcpp/generic/generic_stub.h>
+
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/test_unrolls.h"
@@ -28,11 +30,10 @@ class RewardServiceTest : public ::testing::Test {
     scorer_ = std::make_unique<CountScorer>(*scenario_, config_);
     service_ = std::make_unique<RewardServiceImpl>(scenario_.get(), scorer_.get(), "count", config_,
                                                    snapshot_);
-    int port = 0;
-    auto server = StartServer("127.0.0.1:0", {service_.get()}, &port);
+    auto server = StartServer("127.0.0.1:0", {service_.get()}, &port_);
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = *std::move(server);
-    stub_ = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+    stub_ = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port_)));
   }
   void TearDown() override { server_->Shutdown(); }
 
@@ -60,6 +61,7 @@ class RewardServiceTest : public ::testing::Test {
   std::string snapshot_;
   std::unique_ptr<CountScorer> scorer_;
   std::unique_ptr<RewardServiceImpl> service_;
+  int port_ = 0;
   std::unique_ptr<grpc::Server> server_;
   std::unique_ptr<v1::RewardService::Stub> stub_;
 };
@@ -128,6 +130,57 @@ TEST_F(RewardServiceTest, EveryBadFieldIsInvalidArgumentAndChangesNothing) {
   EXPECT_EQ(stats.distinct_keys(), 0);
   EXPECT_EQ(stats.transitions_scored(), 0);
   EXPECT_EQ(stats.requests_rejected(), static_cast<int64_t>(std::size(cases)) + 1);
+}
+
+// One request message, one response message over any method, as grpc_cli
+// does it: the serialized bytes go over a generic stream.
+grpc::Status CallRaw(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
+                     const std::string& request, std::string* response) {
+  grpc::GenericStub stub(channel);
+  grpc::CompletionQueue cq;
+  grpc::ClientContext context;
+  context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+  auto call = stub.PrepareCall(&context, method, &cq);
+  void* tag;
+  bool ok;
+  call->StartCall(reinterpret_cast<void*>(1));
+  cq.Next(&tag, &ok);
+  grpc::Slice slice(request);
+  grpc::ByteBuffer out(&slice, 1);
+  call->Write(out, reinterpret_cast<void*>(2));
+  cq.Next(&tag, &ok);
+  call->WritesDone(reinterpret_cast<void*>(3));
+  cq.Next(&tag, &ok);
+  grpc::ByteBuffer in;
+  call->Read(&in, reinterpret_cast<void*>(4));
+  cq.Next(&tag, &ok);
+  if (ok) {
+    std::vector<grpc::Slice> slices;
+    in.Dump(&slices).ok();
+    for (const grpc::Slice& s : slices) response->append(reinterpret_cast<const char*>(s.begin()), s.size());
+  }
+  grpc::Status status;
+  call->Finish(&status, reinterpret_cast<void*>(5));
+  cq.Next(&tag, &ok);
+  cq.Shutdown();
+  while (cq.Next(&tag, &ok)) {
+  }
+  return status;
+}
+
+TEST_F(RewardServiceTest, ServesHealthCheckingAndReflection) {
+  auto channel = MakeChannel("127.0.0.1:" + std::to_string(port_));
+  std::string response;
+  // grpc.health.v1.HealthCheckRequest{service: ""} is empty; SERVING is
+  // HealthCheckResponse{status: 1} = bytes 08 01.
+  ASSERT_TRUE(CallRaw(channel, "/grpc.health.v1.Health/Check", "", &response).ok());
+  EXPECT_EQ(response, std::string("\x08\x01", 2));
+  // ServerReflectionRequest{list_services: ""} = field 7, empty string.
+  response.clear();
+  ASSERT_TRUE(CallRaw(channel, "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+                      std::string("\x3a\x00", 2), &response)
+                  .ok());
+  EXPECT_THAT(response, HasSubstr("imca.v1.RewardService"));
 }
 
 TEST_F(RewardServiceTest, SnapshotWithoutPathIsFailedPrecondition) {

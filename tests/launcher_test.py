@@ -21,16 +21,20 @@ def run(args, timeout=300):
 
 
 class LauncherErrorsTest(unittest.TestCase):
-    def test_bad_flag_names_it(self):
-        r = run(["--credit", "bogus"])
-        self.assertEqual(r.returncode, 2)
-        self.assertIn("--credit", r.stderr)
+    def test_bad_flag_names_it_in_one_line(self):
+        for args, flag in [(["--credit", "bogus"], "--credit"), (["--steps", "-5"], "--steps"),
+                           (["--beta", "-1"], "--beta"), (["--no-such-flag"], "--no-such-flag")]:
+            r = run(args)
+            self.assertEqual(r.returncode, 2, args)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn(flag, r.stderr)
 
     def test_missing_map_names_it(self):
         r = run(["--map", "/nonexistent/map.txt"])
         self.assertEqual(r.returncode, 2)
         self.assertIn("--map", r.stderr)
         self.assertIn("/nonexistent/map.txt", r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
 
     def test_port_in_use_is_one_line(self):
         with socket.socket() as s, tempfile.TemporaryDirectory() as out:

@@ -35,9 +35,16 @@ def positive_int(text):
     return value
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """Flag errors as one line naming the flag (no usage dump)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: {message}\n")
+
+
 def parse_args(argv):
-    p = argparse.ArgumentParser(prog="imca train", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog="imca train", description=__doc__,
+                      formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="coop_nav", choices=SCENARIOS)
     p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
     p.add_argument("--reward", default="count", choices=REWARDS, help="global novelty kind")
