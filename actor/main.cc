@@ -11,13 +11,10 @@
 #include "actor/actor.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
+#include "common/scenario_flags.h"
 
 ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
 ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
-ABSL_FLAG(std::string, scenario, "coop_nav", "scenario");
-ABSL_FLAG(std::string, map, "", "map file (default: maps/<scenario>.txt)");
-ABSL_FLAG(int, num_agents, 0, "agents (0: scenario default)");
-ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");
 ABSL_FLAG(int, envs, 16, "environments stepped together");
 ABSL_FLAG(int, unroll_length, 64, "steps per unroll");
 ABSL_FLAG(int, eval_envs, 2, "evaluation environments (same policy, not trained on)");
@@ -40,12 +37,7 @@ int main(int argc, char** argv) {
     return 2;
   };
 
-  env::ScenarioConfig scenario_config;
-  scenario_config.name = absl::GetFlag(FLAGS_scenario);
-  scenario_config.map_path = absl::GetFlag(FLAGS_map);
-  scenario_config.num_agents = absl::GetFlag(FLAGS_num_agents);
-  scenario_config.step_limit = absl::GetFlag(FLAGS_step_limit);
-  auto scenario = env::MakeScenario(scenario_config, env::DefaultMapDir());
+  auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return fail(std::string(scenario.status().message()));
 
   actor::ActorConfig config;

@@ -9,15 +9,12 @@
 #include "absl/strings/str_cat.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
+#include "common/scenario_flags.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50052", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
-ABSL_FLAG(std::string, scenario, "coop_nav", "scenario");
-ABSL_FLAG(std::string, map, "", "map file (default: maps/<scenario>.txt)");
-ABSL_FLAG(int, num_agents, 0, "agents (0: scenario default)");
-ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");
 ABSL_FLAG(std::string, run_dir, "", "run folder for metrics.csv and checkpoints/");
 ABSL_FLAG(std::string, resume, "", "checkpoint directory to resume from");
 ABSL_FLAG(int64_t, steps, 2000000, "budget in joint env steps (0: until stopped)");
@@ -52,12 +49,7 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
 
-  env::ScenarioConfig scenario_config;
-  scenario_config.name = absl::GetFlag(FLAGS_scenario);
-  scenario_config.map_path = absl::GetFlag(FLAGS_map);
-  scenario_config.num_agents = absl::GetFlag(FLAGS_num_agents);
-  scenario_config.step_limit = absl::GetFlag(FLAGS_step_limit);
-  auto scenario = env::MakeScenario(scenario_config, env::DefaultMapDir());
+  auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
 
   learner::LearnerConfig config;

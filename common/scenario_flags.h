@@ -1,0 +1,18 @@
+#ifndef IMCA_COMMON_SCENARIO_FLAGS_H_
+#define IMCA_COMMON_SCENARIO_FLAGS_H_
+
+#include <memory>
+
+#include "absl/status/statusor.h"
+#include "common/env.h"
+
+namespace imca {
+
+// The scenario flags every binary shares: --scenario, --map, --num_agents,
+// --step_limit. Call after absl::ParseCommandLine. Errors: those of
+// env::MakeScenario (the message names the map file or the scenario).
+absl::StatusOr<std::unique_ptr<env::Scenario>> ScenarioFromFlags();
+
+}  // namespace imca
+
+#endif  // IMCA_COMMON_SCENARIO_FLAGS_H_
