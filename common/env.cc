@@ -1,96 +1,370 @@
 #include "common/env.h"
 
+#include <algorithm>
 #include <cstdlib>
+#include <functional>
+#include <map>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 
 namespace imca::env {
 namespace {
 
-constexpr int kDRow[kNumMoveActions] = {-1, 1, 0, 0, 0};
-constexpr int kDCol[kNumMoveActions] = {0, 0, -1, 1, 0};
+constexpr int kDRow[5] = {-1, 1, 0, 0, 0};
+constexpr int kDCol[5] = {0, 0, -1, 1, 0};
 
-// coop_nav (paper 5.1): the agents collect every treasure of the map; an
-// agent collects a treasure by stepping on it. Each step costs every agent
-// 0.1; collecting the last treasure gives every agent +50 and ends the episode.
+bool AnyAgentOn(const int32_t* cells, int n, const std::vector<int32_t>& targets) {
+  for (int a = 0; a < n; ++a) {
+    for (int32_t cell : targets) {
+      if (cells[a] == cell) return true;
+    }
+  }
+  return false;
+}
+
+// coop_nav (paper 5.1): collect every treasure; an agent collects one by
+// stepping on it. z bit k: treasure k collected.
 class CoopNav final : public Scenario {
  public:
-  static constexpr float kStepPenalty = -0.1f;
-  static constexpr float kSuccessReward = 50.0f;
-
-  CoopNav(GridMap map, int num_agents, int step_limit)
-      : Scenario(std::move(map), num_agents, kNumMoveActions, step_limit),
+  CoopNav(GridMap map, const ScenarioConfig& config, int n)
+      : Scenario(std::move(map), config, n, 0, 5, 100, 50.0f, 0.1f),
         all_collected_((1u << map_.treasures().size()) - 1) {}
 
   absl::string_view name() const override { return "coop_nav"; }
   int num_object_bits() const override { return static_cast<int>(map_.treasures().size()); }
+  bool TreasureCollected(const int32_t* state, int k) const override {
+    return (static_cast<uint32_t>(state[kObjectsIndex]) >> k) & 1u;
+  }
 
   void Reset(Rng& rng, int32_t* state) const override {
     state[kObjectsIndex] = 0;
     SpawnAgents(state + 1, rng);
-    state[1 + num_agents_] = 0;
+    state[step_index()] = 0;
   }
 
-  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng,
-                   float* rewards) const override {
-    int32_t* cells = state + 1;
-    MoveAgents(cells, actions, rng);
-    const int t = ++state[1 + num_agents_];
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    const int t = StepAgents(state, actions, rng);
     uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
     const auto& treasures = map_.treasures();
     for (int a = 0; a < num_agents_; ++a) {
       for (size_t k = 0; k < treasures.size(); ++k) {
-        if (cells[a] == treasures[k]) z |= 1u << k;
+        if (state[AgentIndex(a)] == treasures[k]) z |= 1u << k;
       }
     }
     state[kObjectsIndex] = static_cast<int32_t>(z);
-    StepOutcome outcome;
-    outcome.success = z == all_collected_;
-    outcome.terminated = outcome.success;
-    outcome.truncated = !outcome.terminated && t >= step_limit_;
-    const float reward = kStepPenalty + (outcome.success ? kSuccessReward : 0.0f);
-    for (int a = 0; a < num_agents_; ++a) rewards[a] = reward;
-    return outcome;
+    return Finish(t, z == all_collected_, rewards);
   }
 
  private:
   uint32_t all_collected_;
 };
 
+// Doors opened by switches. hold = 0 (multi_room): a door is open exactly
+// while an agent stands on one of its switches; z bit d = door d open.
+// hold > 0 (EDTI's pass, secret_room): a door stays open for `hold` steps
+// after its switch is left; z holds a 4-bit timer per door (hold + 1 while a
+// switch is held, then counting down; open while > 0).
+// The door state in z is computed after each step's moves and governs the
+// next step's moves.
+class DoorScenario : public Scenario {
+ public:
+  DoorScenario(GridMap map, const ScenarioConfig& config, int n, int num_actions, int limit,
+               float success, float penalty, int hold, bool needs_treasure)
+      : Scenario(std::move(map), config, n, 0, num_actions, limit, success, penalty),
+        hold_(hold),
+        needs_treasure_(needs_treasure),
+        goal_room_(map_.GoalRoom()) {}
+
+  int num_object_bits() const override { return map_.num_doors() * (hold_ > 0 ? 4 : 1); }
+  bool DoorOpen(const int32_t* state, int door) const override {
+    const uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
+    return hold_ > 0 ? ((z >> (4 * door)) & 15u) > 0 : ((z >> door) & 1u);
+  }
+
+  void Reset(Rng& rng, int32_t* state) const override {
+    state[kObjectsIndex] = 0;
+    SpawnAgents(state + 1, rng);
+    state[step_index()] = 0;
+    UpdateDoors(state);
+  }
+
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    const int t = StepAgents(state, actions, rng);
+    UpdateDoors(state);
+    bool all_in = true, on_treasure = false;
+    for (int a = 0; a < num_agents_; ++a) {
+      const int cell = state[AgentIndex(a)];
+      all_in &= goal_room_[cell];
+      for (int32_t treasure : map_.treasures()) on_treasure |= cell == treasure;
+    }
+    return Finish(t, all_in && (on_treasure || !needs_treasure_), rewards);
+  }
+
+ private:
+  void UpdateDoors(int32_t* state) const {
+    uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
+    for (int d = 0; d < map_.num_doors(); ++d) {
+      const bool held = AnyAgentOn(state + 1, num_agents_, map_.switches(d));
+      if (hold_ == 0) {
+        z = held ? z | (1u << d) : z & ~(1u << d);
+      } else {
+        const uint32_t timer = (z >> (4 * d)) & 15u;
+        const uint32_t next = held ? hold_ + 1 : (timer > 0 ? timer - 1 : 0);
+        z = (z & ~(15u << (4 * d))) | (next << (4 * d));
+      }
+    }
+    state[kObjectsIndex] = static_cast<int32_t>(z);
+  }
+
+  const uint32_t hold_;
+  const bool needs_treasure_;
+  const std::vector<bool> goal_room_;
+};
+
+class MultiRoom final : public DoorScenario {
+ public:
+  MultiRoom(GridMap map, const ScenarioConfig& config, int n)
+      : DoorScenario(std::move(map), config, n, 5, 300, 50.0f, 0.1f, 0, true) {}
+  absl::string_view name() const override { return "multi_room"; }
+};
+
+class Pass final : public DoorScenario {
+ public:
+  Pass(GridMap map, const ScenarioConfig& config, int n)
+      : DoorScenario(std::move(map), config, n, 4, 300, 1000.0f, 0.0f, 8, false) {}
+  absl::string_view name() const override { return "pass"; }
+};
+
+class SecretRoom final : public DoorScenario {
+ public:
+  SecretRoom(GridMap map, const ScenarioConfig& config, int n)
+      : DoorScenario(std::move(map), config, n, 4, 300, 1000.0f, 0.0f, 8, false) {}
+  absl::string_view name() const override { return "secret_room"; }
+};
+
+// twin_buttons (paper fig. 1b): success when every button is pressed on the
+// same step. z bit k: button k pressed after the last step.
+class TwinButtons final : public Scenario {
+ public:
+  TwinButtons(GridMap map, const ScenarioConfig& config, int n)
+      : Scenario(std::move(map), config, n, 0, 5, 100, 50.0f, 0.1f) {}
+
+  absl::string_view name() const override { return "twin_buttons"; }
+  int num_object_bits() const override { return static_cast<int>(map_.buttons().size()); }
+
+  void Reset(Rng& rng, int32_t* state) const override {
+    SpawnAgents(state + 1, rng);
+    state[step_index()] = 0;
+    state[kObjectsIndex] = static_cast<int32_t>(Pressed(state));
+  }
+
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    const int t = StepAgents(state, actions, rng);
+    const uint32_t pressed = Pressed(state);
+    state[kObjectsIndex] = static_cast<int32_t>(pressed);
+    return Finish(t, pressed == (1u << map_.buttons().size()) - 1, rewards);
+  }
+
+ private:
+  uint32_t Pressed(const int32_t* state) const {
+    uint32_t z = 0;
+    for (size_t k = 0; k < map_.buttons().size(); ++k) {
+      if (ButtonPressed(state, static_cast<int>(k))) z |= 1u << k;
+    }
+    return z;
+  }
+};
+
+// predator_prey (paper 5.2): the predators move first (simultaneously), then
+// the prey takes a uniformly random action that fails if it would leave the
+// prey zone or enter a wall or a predator. The prey is caught when each of its
+// four neighbours is a predator, a wall or off the grid: every predator gets
+// the success reward and the episode ends.
+class PredatorPrey final : public Scenario {
+ public:
+  PredatorPrey(GridMap map, const ScenarioConfig& config, int n)
+      : Scenario(std::move(map), config, n, 1, 5, 100, 20.0f, 0.0f) {}
+
+  absl::string_view name() const override { return "predator_prey"; }
+  int num_object_bits() const override { return 0; }
+
+  void Reset(Rng& rng, int32_t* state) const override {
+    state[kObjectsIndex] = 0;
+    SpawnAgents(state + 1, rng);
+    const auto& zone = map_.prey_zone();
+    while (true) {
+      const int32_t cell = zone[rng.Uniform(static_cast<uint32_t>(zone.size()))];
+      bool free = true;
+      for (int a = 0; a < num_agents_; ++a) free &= state[AgentIndex(a)] != cell;
+      if (free) {
+        state[1 + num_agents_] = cell;
+        break;
+      }
+    }
+    state[step_index()] = 0;
+  }
+
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    const int t = StepAgents(state, actions, rng);
+    int32_t& prey = state[1 + num_agents_];
+    const int u = static_cast<int>(rng.Uniform(5));
+    const int row = map_.Row(prey) + kDRow[u], col = map_.Col(prey) + kDCol[u];
+    if (row >= 0 && row < map_.height() && col >= 0 && col < map_.width()) {
+      const int cell = row * map_.width() + col;
+      if (map_.InPreyZone(cell) && !map_.IsWall(cell) && !Occupied(state, cell)) prey = cell;
+    }
+    return Finish(t, Caught(state), rewards);
+  }
+
+ private:
+  bool Occupied(const int32_t* state, int cell) const {
+    for (int a = 0; a < num_agents_; ++a) {
+      if (state[AgentIndex(a)] == cell) return true;
+    }
+    return false;
+  }
+
+  bool Caught(const int32_t* state) const {
+    const int prey = state[1 + num_agents_];
+    for (int u = 0; u < 4; ++u) {
+      const int row = map_.Row(prey) + kDRow[u], col = map_.Col(prey) + kDCol[u];
+      if (row < 0 || row >= map_.height() || col < 0 || col >= map_.width()) continue;
+      const int cell = row * map_.width() + col;
+      if (!map_.IsWall(cell) && !Occupied(state, cell)) return false;
+    }
+    return true;
+  }
+};
+
+struct ScenarioSpec {
+  int default_agents;
+  // Checks the map has what the rules need; returns "" or the problem.
+  std::function<std::string(const GridMap&)> check;
+  std::function<std::unique_ptr<Scenario>(GridMap, const ScenarioConfig&, int)> make;
+};
+
+std::string NeedDoors(const GridMap& map) {
+  if (map.num_doors() == 0) return "needs at least one door 'A' with a switch 'a'";
+  for (int d = 0; d < map.num_doors(); ++d) {
+    if (map.switches(d).empty()) return absl::StrCat("door '", std::string(1, 'A' + d), "' has no switch");
+  }
+  return "";
+}
+
+const std::map<std::string, ScenarioSpec>& Specs() {
+  static const auto* specs = new std::map<std::string, ScenarioSpec>{
+      {"coop_nav",
+       {2, [](const GridMap& m) { return m.treasures().empty() ? "needs at least one treasure 'T'" : ""; },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<CoopNav>(std::move(m), c, n);
+        }}},
+      {"predator_prey",
+       {4, [](const GridMap& m) { return m.prey_zone().empty() ? "needs prey zone cells 'Z'" : ""; },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<PredatorPrey>(std::move(m), c, n);
+        }}},
+      {"multi_room",
+       {2,
+        [](const GridMap& m) {
+          if (m.treasures().empty()) return std::string("needs a treasure 'T' in the last room");
+          return NeedDoors(m);
+        },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<MultiRoom>(std::move(m), c, n);
+        }}},
+      {"twin_buttons",
+       {2, [](const GridMap& m) { return m.buttons().empty() ? "needs buttons 'X'" : ""; },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<TwinButtons>(std::move(m), c, n);
+        }}},
+      {"pass",
+       {2,
+        [](const GridMap& m) {
+          if (m.goal_markers().empty()) return std::string("needs a goal marker 'G' in the far room");
+          return NeedDoors(m);
+        },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<Pass>(std::move(m), c, n);
+        }}},
+      {"secret_room",
+       {2,
+        [](const GridMap& m) {
+          if (m.goal_markers().empty()) return std::string("needs a goal marker 'G' in the secret room");
+          return NeedDoors(m);
+        },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<SecretRoom>(std::move(m), c, n);
+        }}},
+  };
+  return *specs;
+}
+
 }  // namespace
 
-void Scenario::MoveAgents(int32_t* cells, const int32_t* actions, Rng& rng) const {
-  const int n = num_agents_;
+Scenario::Scenario(GridMap map, const ScenarioConfig& config, int num_agents, int num_npcs,
+                   int num_actions, int default_step_limit, float default_success_reward,
+                   float default_step_penalty)
+    : map_(std::move(map)),
+      num_agents_(num_agents),
+      num_npcs_(num_npcs),
+      num_actions_(num_actions),
+      step_limit_(config.step_limit > 0 ? config.step_limit : default_step_limit),
+      view_radius_(config.view_radius),
+      success_reward_(std::isnan(config.success_reward) ? default_success_reward
+                                                        : static_cast<float>(config.success_reward)),
+      step_penalty_(std::isnan(config.step_penalty) ? default_step_penalty
+                                                    : static_cast<float>(config.step_penalty)) {}
+
+bool Scenario::ButtonPressed(const int32_t* state, int button) const {
+  const int32_t cell = map_.buttons()[button];
+  for (int a = 0; a < num_agents_; ++a) {
+    if (state[AgentIndex(a)] == cell) return true;
+  }
+  return false;
+}
+
+bool Scenario::Enterable(const int32_t* state, int cell) const {
+  if (map_.IsWall(cell)) return false;
+  const int door = map_.DoorAt(cell);
+  return door < 0 || DoorOpen(state, door);
+}
+
+void Scenario::MoveAgents(const int32_t* state, int32_t* cells, int count, const int32_t* actions,
+                          const int32_t* others, int num_others, Rng& rng) const {
   const int width = map_.width();
   int32_t target[kMaxAgents];
-  bool contested = false;
-  for (int a = 0; a < n; ++a) {
+  for (int a = 0; a < count; ++a) {
     const int u = actions[a];
     const int row = map_.Row(cells[a]) + kDRow[u];
     const int col = map_.Col(cells[a]) + kDCol[u];
     target[a] = cells[a];
     if (row < 0 || row >= map_.height() || col < 0 || col >= width) continue;
     const int cell = row * width + col;
-    if (!map_.IsWall(cell)) target[a] = cell;
+    if (!Enterable(state, cell)) continue;
+    bool taken = false;
+    for (int j = 0; j < num_others; ++j) taken |= others[j] == cell;
+    if (!taken) target[a] = cell;
   }
-  for (int a = 0; a < n && !contested; ++a) {
-    for (int b = a + 1; b < n; ++b) {
+  bool contested = false;
+  for (int a = 0; a < count && !contested; ++a) {
+    for (int b = a + 1; b < count; ++b) {
       if (target[a] == target[b] && target[a] != cells[a] && target[b] != cells[b]) contested = true;
     }
   }
   // rank[a] < rank[b]: a wins a contested cell. Drawn only when needed, so
   // uncontested steps consume no randomness.
   int rank[kMaxAgents];
-  for (int a = 0; a < n; ++a) rank[a] = a;
+  for (int a = 0; a < count; ++a) rank[a] = a;
   if (contested) {
-    for (int a = n - 1; a > 0; --a) std::swap(rank[a], rank[rng.Uniform(a + 1)]);
+    for (int a = count - 1; a > 0; --a) std::swap(rank[a], rank[rng.Uniform(a + 1)]);
   }
   bool changed = true;
   while (changed) {
     changed = false;
-    for (int a = 0; a < n; ++a) {
+    for (int a = 0; a < count; ++a) {
       if (target[a] == cells[a]) continue;
-      for (int b = 0; b < n; ++b) {
+      for (int b = 0; b < count; ++b) {
         if (b == a) continue;
         const bool b_stays = target[b] == cells[b];
         const bool into_staying = target[a] == cells[b] && b_stays;
@@ -104,7 +378,22 @@ void Scenario::MoveAgents(int32_t* cells, const int32_t* actions, Rng& rng) cons
       }
     }
   }
-  for (int a = 0; a < n; ++a) cells[a] = target[a];
+  for (int a = 0; a < count; ++a) cells[a] = target[a];
+}
+
+int Scenario::StepAgents(int32_t* state, const int32_t* actions, Rng& rng) const {
+  MoveAgents(state, state + 1, num_agents_, actions, state + 1 + num_agents_, num_npcs_, rng);
+  return ++state[step_index()];
+}
+
+StepOutcome Scenario::Finish(int t, bool success, float* rewards) const {
+  StepOutcome outcome;
+  outcome.success = success;
+  outcome.terminated = success;
+  outcome.truncated = !success && t >= step_limit_;
+  const float reward = -step_penalty_ + (success ? success_reward_ : 0.0f);
+  for (int a = 0; a < num_agents_; ++a) rewards[a] = reward;
+  return outcome;
 }
 
 void Scenario::SpawnAgents(int32_t* cells, Rng& rng) const {
@@ -137,14 +426,20 @@ absl::Status Scenario::ValidateState(const int32_t* state) const {
   if (z < 0 || (num_object_bits() < 31 && z >= (int64_t{1} << num_object_bits()))) {
     return absl::InvalidArgumentError(absl::StrCat("object bits ", z, " out of range for ", name()));
   }
-  for (int a = 0; a < num_agents_; ++a) {
-    const int32_t cell = state[1 + a];
+  for (int i = 0; i < num_agents_ + num_npcs_; ++i) {
+    const int32_t cell = state[1 + i];
+    const std::string who = i < num_agents_ ? absl::StrCat("agent ", i) : absl::StrCat("entity ", i - num_agents_);
     if (cell < 0 || cell >= map_.num_cells() || map_.IsWall(cell)) {
-      return absl::InvalidArgumentError(absl::StrCat("cell of agent ", a, " is ", cell,
-                                                     ", not a floor cell of the map"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("cell of ", who, " is ", cell, ", not a floor cell of the map"));
+    }
+    for (int j = 0; j < i; ++j) {
+      if (state[1 + j] == cell) {
+        return absl::InvalidArgumentError(absl::StrCat("cell of ", who, " is ", cell, ", already taken"));
+      }
     }
   }
-  const int32_t t = state[1 + num_agents_];
+  const int32_t t = state[step_index()];
   if (t < 0 || t > step_limit_) {
     return absl::InvalidArgumentError(absl::StrCat("step count ", t, " outside [0, ", step_limit_, "]"));
   }
@@ -153,31 +448,39 @@ absl::Status Scenario::ValidateState(const int32_t* state) const {
 
 std::string Scenario::Render(const int32_t* state) const {
   std::string out;
-  const uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
+  const auto& treasures = map_.treasures();
   for (int row = 0; row < map_.height(); ++row) {
     for (int col = 0; col < map_.width(); ++col) {
       const int cell = row * map_.width() + col;
-      char c = map_.IsWall(cell) ? '#' : '.';
-      const auto& treasures = map_.treasures();
+      char c = map_.IsWall(cell) ? '#' : (map_.InPreyZone(cell) ? 'Z' : '.');
+      for (int32_t g : map_.goal_markers()) c = g == cell ? 'G' : c;
+      for (int32_t b : map_.buttons()) c = b == cell ? 'X' : c;
       for (size_t k = 0; k < treasures.size(); ++k) {
-        if (treasures[k] == cell && !(z >> k & 1u)) c = 'T';
+        if (treasures[k] == cell && !TreasureCollected(state, static_cast<int>(k))) c = 'T';
       }
-      for (int a = 0; a < num_agents_; ++a) {
-        if (state[1 + a] == cell) c = static_cast<char>('1' + a);
-      }
+      if (map_.SwitchAt(cell) >= 0) c = static_cast<char>('a' + map_.SwitchAt(cell));
+      if (map_.DoorAt(cell) >= 0) c = DoorOpen(state, map_.DoorAt(cell)) ? '/' : static_cast<char>('A' + map_.DoorAt(cell));
+      for (int j = 0; j < num_npcs_; ++j) c = state[1 + num_agents_ + j] == cell ? 'P' : c;
+      for (int a = 0; a < num_agents_; ++a) c = state[AgentIndex(a)] == cell ? static_cast<char>('1' + a) : c;
       out.push_back(c);
     }
     out.push_back('\n');
   }
-  absl::StrAppend(&out, "t=", state[1 + num_agents_], " objects=", z, "\n");
+  absl::StrAppend(&out, "t=", state[step_index()], " z=", state[kObjectsIndex], "\n");
   return out;
+}
+
+std::vector<std::string> ScenarioNames() {
+  std::vector<std::string> names;
+  for (const auto& [name, spec] : Specs()) names.push_back(name);
+  return names;
 }
 
 absl::StatusOr<std::unique_ptr<Scenario>> MakeScenario(const ScenarioConfig& config,
                                                        const std::string& map_dir) {
-  if (config.name != "coop_nav") {
-    return absl::InvalidArgumentError(
-        absl::StrCat("unknown scenario '", config.name, "' (available: coop_nav)"));
+  if (Specs().count(config.name) == 0) {
+    return absl::InvalidArgumentError(absl::StrCat("unknown scenario '", config.name, "' (available: ",
+                                                   absl::StrJoin(ScenarioNames(), ", "), ")"));
   }
   const std::string path =
       config.map_path.empty() ? absl::StrCat(map_dir, "/", config.name, ".txt") : config.map_path;
@@ -188,29 +491,38 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenario(const ScenarioConfig& con
 
 absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConfig& config,
                                                               GridMap map) {
-  if (config.name != "coop_nav") {
-    return absl::InvalidArgumentError(
-        absl::StrCat("unknown scenario '", config.name, "' (available: coop_nav)"));
+  auto spec = Specs().find(config.name);
+  if (spec == Specs().end()) {
+    return absl::InvalidArgumentError(absl::StrCat("unknown scenario '", config.name, "' (available: ",
+                                                   absl::StrJoin(ScenarioNames(), ", "), ")"));
   }
-  const int num_agents = config.num_agents > 0 ? config.num_agents : 2;
+  const int num_agents = config.num_agents > 0 ? config.num_agents : spec->second.default_agents;
   if (num_agents > kMaxAgents) {
     return absl::InvalidArgumentError(absl::StrCat("num_agents ", num_agents, " above ", kMaxAgents));
+  }
+  if (const std::string problem = spec->second.check(map); !problem.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(map.source(), ": ", config.name, " ", problem));
   }
   int random_needed = 0;
   for (int a = 0; a < num_agents; ++a) random_needed += map.FixedSpawn(a) < 0;
   if (random_needed > static_cast<int>(map.random_spawns().size())) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        map.source(), ": ", random_needed, " agents need a random spawn but the map has ",
-        map.random_spawns().size(), " 'S' cells"));
+    return absl::InvalidArgumentError(absl::StrCat(map.source(), ": ", random_needed,
+                                                   " agents need a random spawn but the map has ",
+                                                   map.random_spawns().size(), " 'S' cells"));
   }
-  if (map.treasures().empty()) {
-    return absl::InvalidArgumentError(absl::StrCat(map.source(), ": coop_nav needs at least one 'T'"));
+  if (config.step_limit < 0 || config.step_limit > 100000) {
+    return absl::InvalidArgumentError(absl::StrCat("step_limit ", config.step_limit, " not in [1, 100000]"));
   }
-  const int step_limit = config.step_limit > 0 ? config.step_limit : 100;
-  if (step_limit > 100000) {
-    return absl::InvalidArgumentError(absl::StrCat("step_limit ", step_limit, " above 100000"));
+  if (config.view_radius < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("view_radius ", config.view_radius, " is negative"));
   }
-  return std::make_unique<CoopNav>(std::move(map), num_agents, step_limit);
+  if (!std::isnan(config.success_reward) && !std::isfinite(config.success_reward)) {
+    return absl::InvalidArgumentError("success_reward must be finite");
+  }
+  if (!std::isnan(config.step_penalty) && !std::isfinite(config.step_penalty)) {
+    return absl::InvalidArgumentError("step_penalty must be finite");
+  }
+  return spec->second.make(std::move(map), config, num_agents);
 }
 
 std::string DefaultMapDir() {

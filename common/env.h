@@ -1,36 +1,42 @@
 #ifndef IMCA_COMMON_ENV_H_
 #define IMCA_COMMON_ENV_H_
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
-#include "absl/strings/string_view.h"
+#include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "common/grid_map.h"
 #include "common/rng.h"
 
 namespace imca::env {
 
-// Actions shared by every 5-action scenario.
+// Actions. Scenarios with 4 actions (pass) use the first four (no stay).
 enum Action : int32_t { kUp = 0, kDown = 1, kLeft = 2, kRight = 3, kStay = 4 };
-inline constexpr int kNumMoveActions = 5;
 inline constexpr int kMaxAgents = 9;
+inline constexpr int kMaxNpcs = 4;
 
-// The compact state of one environment, as it travels in Unroll.states:
-//   state[0]        = z, the shared object bits (scenario-defined; coop_nav:
-//                     bit k set when treasure k has been collected)
-//   state[1 + a]    = cell of agent a (row * width + col)
-//   state[1 + n]    = step count t within the episode
-// state_size = n + 2.
+// The compact state of one environment, as it travels in Unroll.states, K =
+// n + m + 2 int32 values (n agents, m non-player entities such as the prey):
+//   state[0]          z, the scenario's object bits (docs/scenarios.md)
+//   state[1 + a]      cell of agent a (row * width + col)
+//   state[1 + n + j]  cell of entity j (predator_prey: the prey)
+//   state[1 + n + m]  step count t within the episode
 inline constexpr int kObjectsIndex = 0;
 inline int AgentIndex(int agent) { return 1 + agent; }
 
 struct ScenarioConfig {
   std::string name = "coop_nav";
-  std::string map_path;  // Empty: maps/<name>.txt under the map directory.
+  std::string map_path;  // Empty: <map_dir>/<name>.txt.
   int num_agents = 0;    // 0: the scenario default.
   int step_limit = 0;    // 0: the scenario default.
+  // NaN: the scenario default (docs/scenarios.md).
+  double success_reward = std::nan("");
+  double step_penalty = std::nan("");
+  int view_radius = 0;   // predator_prey: 0 = full observation, r = see others within r cells.
 };
 
 struct StepOutcome {
@@ -48,10 +54,15 @@ class Scenario {
 
   virtual absl::string_view name() const = 0;
   int num_agents() const { return num_agents_; }
+  int num_npcs() const { return num_npcs_; }
   int num_actions() const { return num_actions_; }
-  int state_size() const { return num_agents_ + 2; }
+  int state_size() const { return num_agents_ + num_npcs_ + 2; }
+  int step_index() const { return 1 + num_agents_ + num_npcs_; }
   int step_limit() const { return step_limit_; }
-  // Number of meaningful low bits of z (objects).
+  int view_radius() const { return view_radius_; }
+  float success_reward() const { return success_reward_; }
+  float step_penalty() const { return step_penalty_; }
+  // Number of meaningful low bits of z.
   virtual int num_object_bits() const = 0;
   const GridMap& map() const { return map_; }
 
@@ -62,37 +73,60 @@ class Scenario {
   virtual StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng,
                            float* rewards) const = 0;
 
+  // What a state shows, for renderers and tests.
+  virtual bool DoorOpen(const int32_t* state, int door) const { return false; }
+  virtual bool TreasureCollected(const int32_t* state, int treasure) const { return false; }
+  // A button is pressed while an agent stands on it.
+  bool ButtonPressed(const int32_t* state, int button) const;
+
   // OK if `state` could occur in this scenario: cells in range and not walls,
   // z within num_object_bits, t within [0, step_limit]. The error message
   // names the offending element, e.g. "cell of agent 1".
   absl::Status ValidateState(const int32_t* state) const;
 
-  // Multi-line text picture: '#' wall, 'T' uncollected treasure, '1'.. agents.
+  // Multi-line text picture (docs/maps.md legend; agents '1'.., the prey 'P',
+  // an open door '/', a collected treasure or pressed button shown as floor
+  // or as the agent on it), then "t=.. z=..".
   std::string Render(const int32_t* state) const;
 
  protected:
-  Scenario(GridMap map, int num_agents, int num_actions, int step_limit)
-      : map_(std::move(map)), num_agents_(num_agents), num_actions_(num_actions),
-        step_limit_(step_limit) {}
+  Scenario(GridMap map, const ScenarioConfig& config, int num_agents, int num_npcs, int num_actions,
+           int default_step_limit, float default_success_reward, float default_step_penalty);
 
-  // Simultaneous moves of all agents (cells updated in place): a move into a
-  // wall or off the grid fails; agents never share a cell or swap places; when
-  // several agents want the same cell, a random priority order drawn from
-  // `rng` decides which one gets it. Agents that fail stay where they are.
-  void MoveAgents(int32_t* cells, const int32_t* actions, Rng& rng) const;
+  // True if an agent or entity may enter `cell` given the doors of `state`.
+  bool Enterable(const int32_t* state, int cell) const;
+  // Simultaneous moves of `count` movers (cells updated in place): a move into
+  // a wall, a closed door, a blocked cell (`blocked(cell)` true) or off the
+  // grid fails; movers never share a cell or swap places; when several want
+  // the same cell, a random priority order drawn from `rng` (only on such
+  // steps) decides and the others stay. `others` are cells of non-movers.
+  void MoveAgents(const int32_t* state, int32_t* cells, int count, const int32_t* actions,
+                  const int32_t* others, int num_others, Rng& rng) const;
   // Places agents at their fixed spawns or on distinct random spawn cells.
   void SpawnAgents(int32_t* cells, Rng& rng) const;
+  // Moves the agents of `state` with `actions`, increments t. Returns new t.
+  int StepAgents(int32_t* state, const int32_t* actions, Rng& rng) const;
+  // Fills rewards with the step penalty (+ success reward) and the outcome
+  // flags from `success` and the step limit.
+  StepOutcome Finish(int t, bool success, float* rewards) const;
 
   GridMap map_;
   int num_agents_;
+  int num_npcs_;
   int num_actions_;
   int step_limit_;
+  int view_radius_;
+  float success_reward_;
+  float step_penalty_;
 };
+
+// Names of the available scenarios.
+std::vector<std::string> ScenarioNames();
 
 // Creates a scenario by name, loading its map (config.map_path or
 // <map_dir>/<name>.txt). Errors: INVALID_ARGUMENT for an unknown scenario, an
-// agent count the map cannot hold or a bad step limit; NOT_FOUND / INVALID_ARGUMENT
-// from the map loader.
+// agent count the map cannot hold, a map lacking what the scenario needs, or a
+// bad step limit; NOT_FOUND / INVALID_ARGUMENT from the map loader.
 absl::StatusOr<std::unique_ptr<Scenario>> MakeScenario(const ScenarioConfig& config,
                                                        const std::string& map_dir);
 

@@ -158,9 +158,9 @@ TEST(CoopNavTest, TruncationAtStepLimitIsNotTermination) {
 TEST(ScenarioTest, RenderShowsWallsTreasuresAndAgents) {
   auto s = Make("1..T2\n");
   const std::vector<int32_t> state = {0, 1, 4, 7};
-  EXPECT_EQ(s->Render(state.data()), ".1.T2\nt=7 objects=0\n");
+  EXPECT_EQ(s->Render(state.data()), ".1.T2\nt=7 z=0\n");
   const std::vector<int32_t> collected = {1, 1, 4, 7};
-  EXPECT_EQ(s->Render(collected.data()), ".1..2\nt=7 objects=1\n");
+  EXPECT_EQ(s->Render(collected.data()), ".1..2\nt=7 z=1\n");
 }
 
 TEST(ScenarioTest, ValidateStateNamesTheElement) {

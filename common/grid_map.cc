@@ -1,5 +1,6 @@
 #include "common/grid_map.h"
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -9,55 +10,72 @@
 namespace imca::env {
 
 absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view source) {
-  constexpr int kMaxSide = 256;
   GridMap map;
   map.source_ = std::string(source);
   int line_no = 0;
   int row = 0;
+  int max_door = -1;
+  std::vector<std::pair<int, int>> switch_lines(kMaxDoors, {0, 0});  // Where a switch was seen.
   for (absl::string_view line : absl::StrSplit(text, '\n')) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     if (line.empty() || line[0] == ';') continue;
+    const int width = static_cast<int>(line.size());
     if (map.width_ == 0) {
-      map.width_ = static_cast<int>(line.size());
-      if (map.width_ > kMaxSide) {
-        return absl::InvalidArgumentError(absl::StrCat(source, ":", line_no, ": row is wider than ",
-                                                       kMaxSide, " cells"));
+      if (width > kMaxSide) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(source, ":", line_no, ":", kMaxSide + 1, ": row is wider than ", kMaxSide, " cells"));
       }
-    } else if (static_cast<int>(line.size()) != map.width_) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(source, ":", line_no, ":", std::min<int>(line.size(), map.width_) + 1,
-                       ": row has ", line.size(), " cells, expected ", map.width_));
+      map.width_ = width;
+    } else if (width != map.width_) {
+      return absl::InvalidArgumentError(absl::StrCat(source, ":", line_no, ":", std::min(width, map.width_) + 1,
+                                                     ": row has ", width, " cells, expected ", map.width_));
     }
     if (row >= kMaxSide) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(source, ":", line_no, ": more than ", kMaxSide, " rows"));
+      return absl::InvalidArgumentError(absl::StrCat(source, ":", line_no, ":1: more than ", kMaxSide, " rows"));
     }
-    for (int col = 0; col < map.width_; ++col) {
-      const int cell = row * map.width_ + col;
+    for (int col = 0; col < width; ++col) {
+      const int cell = row * width + col;
       const char c = line[col];
-      uint8_t type = kFloor;
+      uint8_t wall = 0, zone = 0;
+      int8_t door = -1, sw = -1;
       if (c == '#') {
-        type = kWall;
+        wall = 1;
       } else if (c == '.') {
       } else if (c >= '1' && c <= '9') {
         const int agent = c - '1';
         if (static_cast<int>(map.fixed_spawns_.size()) <= agent) map.fixed_spawns_.resize(agent + 1, -1);
         if (map.fixed_spawns_[agent] != -1) {
-          return absl::InvalidArgumentError(absl::StrCat(source, ":", line_no, ":", col + 1,
-                                                         ": second spawn for agent ", agent + 1));
+          return absl::InvalidArgumentError(
+              absl::StrCat(source, ":", line_no, ":", col + 1, ": second spawn for agent ", agent + 1));
         }
         map.fixed_spawns_[agent] = cell;
       } else if (c == 'S') {
         map.random_spawns_.push_back(cell);
       } else if (c == 'T') {
         map.treasures_.push_back(cell);
+      } else if (c == 'X') {
+        map.buttons_.push_back(cell);
+      } else if (c == 'Z') {
+        zone = 1;
+        map.prey_zone_.push_back(cell);
+      } else if (c == 'G') {
+        map.goal_markers_.push_back(cell);
+      } else if (c >= 'A' && c < 'A' + kMaxDoors) {
+        door = static_cast<int8_t>(c - 'A');
+      } else if (c >= 'a' && c < 'a' + kMaxDoors) {
+        sw = static_cast<int8_t>(c - 'a');
+        if (switch_lines[sw].first == 0) switch_lines[sw] = {line_no, col + 1};
       } else {
-        return absl::InvalidArgumentError(absl::StrCat(source, ":", line_no, ":", col + 1,
-                                                       ": unknown map character '", std::string(1, c),
-                                                       "' (legend: # . 1-9 S T)"));
+        return absl::InvalidArgumentError(
+            absl::StrCat(source, ":", line_no, ":", col + 1, ": unknown map character '", std::string(1, c),
+                         "' (legend: # . 1-9 S T X Z G A-F a-f)"));
       }
-      map.cells_.push_back(type);
+      max_door = std::max<int>(max_door, std::max(door, sw));
+      map.wall_.push_back(wall);
+      map.zone_.push_back(zone);
+      map.door_of_.push_back(door);
+      map.switch_of_.push_back(sw);
     }
     ++row;
   }
@@ -65,6 +83,23 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
   if (map.height_ == 0) return absl::InvalidArgumentError(absl::StrCat(source, ": map has no rows"));
   if (map.treasures_.size() > 16) {
     return absl::InvalidArgumentError(absl::StrCat(source, ": at most 16 treasures are supported"));
+  }
+  if (map.buttons_.size() > 16) {
+    return absl::InvalidArgumentError(absl::StrCat(source, ": at most 16 buttons are supported"));
+  }
+  map.door_cells_.resize(max_door + 1);
+  map.switches_.resize(max_door + 1);
+  for (int cell = 0; cell < map.num_cells(); ++cell) {
+    if (map.door_of_[cell] >= 0) map.door_cells_[map.door_of_[cell]].push_back(cell);
+    if (map.switch_of_[cell] >= 0) map.switches_[map.switch_of_[cell]].push_back(cell);
+  }
+  for (int d = 0; d <= max_door; ++d) {
+    if (map.door_cells_[d].empty()) {
+      const auto [line, col] = switch_lines[d];
+      return absl::InvalidArgumentError(absl::StrCat(source, ":", line, ":", col, ": switch '",
+                                                     std::string(1, 'a' + d), "' has no door '",
+                                                     std::string(1, 'A' + d), "'"));
+    }
   }
   return map;
 }
@@ -77,10 +112,24 @@ absl::StatusOr<GridMap> GridMap::Load(const std::string& path) {
   return Parse(buffer.str(), path);
 }
 
-int GridMap::num_fixed_spawns() const {
-  int count = 0;
-  for (int32_t cell : fixed_spawns_) count += cell >= 0;
-  return count;
+std::vector<bool> GridMap::GoalRoom() const {
+  std::vector<bool> room(num_cells(), false);
+  std::vector<int32_t> frontier = goal_markers_.empty() ? treasures_ : goal_markers_;
+  for (int32_t cell : frontier) room[cell] = true;
+  while (!frontier.empty()) {
+    const int cell = frontier.back();
+    frontier.pop_back();
+    const int r = Row(cell), c = Col(cell);
+    const int neighbours[4][2] = {{r - 1, c}, {r + 1, c}, {r, c - 1}, {r, c + 1}};
+    for (const auto& [nr, nc] : neighbours) {
+      if (nr < 0 || nr >= height_ || nc < 0 || nc >= width_) continue;
+      const int next = nr * width_ + nc;
+      if (room[next] || IsWall(next) || DoorAt(next) >= 0) continue;
+      room[next] = true;
+      frontier.push_back(next);
+    }
+  }
+  return room;
 }
 
 }  // namespace imca::env

@@ -3,29 +3,32 @@
 
 #include <cstdint>
 #include <string>
-#include "absl/strings/string_view.h"
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 
 namespace imca::env {
 
-// A gridworld layout read from an ASCII map file. Legend (one character per
-// cell; every row the same width; see docs/maps.md):
-//   '#' wall            '.' floor
-//   '1'..'9' fixed spawn cell of agent 1..9 (floor)
-//   'S' random-spawn cell (floor): agents without a fixed spawn start on
-//       distinct cells drawn uniformly from these at every reset
-//   'T' treasure (floor)
-// Lines whose first character is ';' are comments; blank lines are ignored.
-// Cells are numbered row-major: cell = row * width + col.
-// Immutable after Parse; safe to share between threads.
+// A gridworld layout read from an ASCII map file. One legend for every
+// scenario (docs/maps.md); one character per cell, every row the same width:
+//   '#' wall              '.' floor
+//   '1'..'9' fixed spawn of agent 1..9      'S' random agent spawn
+//   'T' treasure          'X' button        'Z' prey zone (prey spawns and moves only here)
+//   'G' goal marker: the room (door-free connected region) holding it is the goal room
+//   'A'..'F' a cell of door 0..5 (several cells with one letter form one wide door)
+//   'a'..'f' a switch of door 0..5
+// Every special cell is also floor. Lines whose first character is ';' are
+// comments; blank lines are ignored. Cells are numbered row-major:
+// cell = row * width + col. Immutable after Parse; safe to share.
 class GridMap {
  public:
-  enum Cell : uint8_t { kFloor = 0, kWall = 1 };
+  static constexpr int kMaxDoors = 6;
+  static constexpr int kMaxSide = 256;
 
   // Parses `text`. Errors: INVALID_ARGUMENT naming `source`, line and column
-  // of the first bad character, or the problem (ragged rows, no rows, too big).
+  // of the first bad character, or the problem (ragged rows, no rows, too big,
+  // a switch without its door).
   static absl::StatusOr<GridMap> Parse(absl::string_view text, absl::string_view source);
   // Reads and parses the file at `path`. Errors: NOT_FOUND if it cannot be
   // read, plus those of Parse.
@@ -34,25 +37,52 @@ class GridMap {
   int width() const { return width_; }
   int height() const { return height_; }
   int num_cells() const { return width_ * height_; }
-  bool IsWall(int cell) const { return cells_[cell] == kWall; }
+  bool IsWall(int cell) const { return wall_[cell] != 0; }
   int Row(int cell) const { return cell / width_; }
   int Col(int cell) const { return cell % width_; }
+
   // Fixed spawn of agent a (0-based) or -1 when it spawns at random.
   int FixedSpawn(int agent) const {
     return agent < static_cast<int>(fixed_spawns_.size()) ? fixed_spawns_[agent] : -1;
   }
-  int num_fixed_spawns() const;
   const std::vector<int32_t>& random_spawns() const { return random_spawns_; }
   const std::vector<int32_t>& treasures() const { return treasures_; }
+  const std::vector<int32_t>& buttons() const { return buttons_; }
+  const std::vector<int32_t>& prey_zone() const { return prey_zone_; }
+  const std::vector<int32_t>& goal_markers() const { return goal_markers_; }
+  bool InPreyZone(int cell) const { return zone_[cell] != 0; }
+
+  // Doors 0..num_doors()-1 (letters 'A'..), each a set of cells and switches.
+  int num_doors() const { return static_cast<int>(door_cells_.size()); }
+  // Door whose cell this is, or -1.
+  int DoorAt(int cell) const { return door_of_[cell]; }
+  // Door this switch opens, or -1.
+  int SwitchAt(int cell) const { return switch_of_[cell]; }
+  const std::vector<int32_t>& door_cells(int door) const { return door_cells_[door]; }
+  const std::vector<int32_t>& switches(int door) const { return switches_[door]; }
+
+  // Cells of the room holding the 'G' markers or, if there are none, the
+  // treasures: the region reachable from them without crossing walls or
+  // doors. Empty if the map has neither.
+  std::vector<bool> GoalRoom() const;
+
   const std::string& source() const { return source_; }
 
  private:
   int width_ = 0;
   int height_ = 0;
-  std::vector<uint8_t> cells_;
+  std::vector<uint8_t> wall_;
+  std::vector<uint8_t> zone_;
+  std::vector<int8_t> door_of_;
+  std::vector<int8_t> switch_of_;
   std::vector<int32_t> fixed_spawns_;  // Index = agent, -1 = none.
   std::vector<int32_t> random_spawns_;
   std::vector<int32_t> treasures_;
+  std::vector<int32_t> buttons_;
+  std::vector<int32_t> prey_zone_;
+  std::vector<int32_t> goal_markers_;
+  std::vector<std::vector<int32_t>> door_cells_;
+  std::vector<std::vector<int32_t>> switches_;
   std::string source_;
 };
 

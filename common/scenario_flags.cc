@@ -1,5 +1,6 @@
 #include "common/scenario_flags.h"
 
+#include <cmath>
 #include <string>
 
 #include "absl/flags/flag.h"
@@ -8,6 +9,9 @@ ABSL_FLAG(std::string, scenario, "coop_nav", "scenario name");
 ABSL_FLAG(std::string, map, "", "map file (default: maps/<scenario>.txt)");
 ABSL_FLAG(int, num_agents, 0, "agents (0: scenario default)");
 ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");
+ABSL_FLAG(double, success_reward, std::nan(""), "reward to each agent on success (default: the scenario's)");
+ABSL_FLAG(double, step_penalty, std::nan(""), "cost to each agent per step (default: the scenario's)");
+ABSL_FLAG(int, view_radius, 0, "partial observation: see others within this many cells (0: everything)");
 
 namespace imca {
 
@@ -17,6 +21,9 @@ absl::StatusOr<std::unique_ptr<env::Scenario>> ScenarioFromFlags() {
   config.map_path = absl::GetFlag(FLAGS_map);
   config.num_agents = absl::GetFlag(FLAGS_num_agents);
   config.step_limit = absl::GetFlag(FLAGS_step_limit);
+  config.success_reward = absl::GetFlag(FLAGS_success_reward);
+  config.step_penalty = absl::GetFlag(FLAGS_step_penalty);
+  config.view_radius = absl::GetFlag(FLAGS_view_radius);
   return env::MakeScenario(config, env::DefaultMapDir());
 }
 

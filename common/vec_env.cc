@@ -34,7 +34,7 @@ void VecEnv::Step(const int32_t* actions, float* rewards, bool* terminated, bool
     truncated[e] = outcome.truncated;
     std::memcpy(reached_states + static_cast<size_t>(e) * k_, state, sizeof(int32_t) * k_);
     if (outcome.terminated || outcome.truncated) {
-      finished_.push_back({returns_[e], state[1 + n_], outcome.success});
+      finished_.push_back({returns_[e], state[scenario_->step_index()], outcome.success});
       returns_[e] = 0;
       ++episode_count_[e];
       scenario_->Reset(rngs_[e], state);

@@ -21,6 +21,7 @@ float Novelty(uint32_t count_before) {
 CountScorer::CountScorer(const env::Scenario& scenario, const ScorerConfig& config)
     : n_(scenario.num_agents()),
       num_actions_(scenario.num_actions()),
+      k_(scenario.state_size()),
       config_(config),
       codec_(scenario),
       rng_(config.seed) {}
@@ -41,10 +42,9 @@ uint32_t CountScorer::JointCount(const int32_t* state, const int32_t* actions) c
 }
 
 absl::Status CountScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
-  const int k = n_ + 2;
   absl::MutexLock lock(&mu_);
   for (int64_t i = 0; i < batch.size; ++i) {
-    ScoreOne(batch.states + i * k, batch.actions + i * n_, batch.action_probs + i * n_ * num_actions_,
+    ScoreOne(batch.states + i * k_, batch.actions + i * n_, batch.action_probs + i * n_ * num_actions_,
              dry_run, out.global_rewards + i, out.contributions + i * n_, out.shares + i * n_,
              out.agent_rewards + i * n_);
   }

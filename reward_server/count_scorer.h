@@ -51,6 +51,7 @@ class CountScorer final : public Scorer {
 
   const int n_;
   const int num_actions_;
+  const int k_;  // state_size
   const ScorerConfig config_;
   const JointKeyCodec codec_;
 

@@ -21,10 +21,11 @@ uint64_t Mix(uint64_t h, uint64_t x) {
 
 JointKeyCodec::JointKeyCodec(const env::Scenario& scenario)
     : n_(scenario.num_agents()),
+      m_(scenario.num_npcs()),
       object_bits_(scenario.num_object_bits()),
       cell_bits_(BitsFor(scenario.map().num_cells())),
       action_bits_(BitsFor(scenario.num_actions())) {
-  exact_ = object_bits_ + n_ * (cell_bits_ + action_bits_) <= 64;
+  exact_ = object_bits_ + m_ * cell_bits_ + n_ * (cell_bits_ + action_bits_) <= 64;
 }
 
 uint64_t JointKeyCodec::GlobalKey(const int32_t* state, const int32_t* actions,
@@ -33,6 +34,10 @@ uint64_t JointKeyCodec::GlobalKey(const int32_t* state, const int32_t* actions,
   if (exact_) {
     uint64_t key = z;
     int shift = object_bits_;
+    for (int j = 0; j < m_; ++j) {
+      key |= static_cast<uint64_t>(state[1 + n_ + j]) << shift;
+      shift += cell_bits_;
+    }
     for (int slot = 0; slot < n_; ++slot) {
       const int a = order[slot];
       const uint64_t pair = static_cast<uint64_t>(state[env::AgentIndex(a)]) << action_bits_ |
@@ -43,6 +48,7 @@ uint64_t JointKeyCodec::GlobalKey(const int32_t* state, const int32_t* actions,
     return key;
   }
   uint64_t h = Mix(0x243f6a8885a308d3ULL, z);
+  for (int j = 0; j < m_; ++j) h = Mix(h, static_cast<uint64_t>(state[1 + n_ + j]));
   for (int slot = 0; slot < n_; ++slot) {
     const int a = order[slot];
     h = Mix(h, static_cast<uint64_t>(state[env::AgentIndex(a)]) << 8 | static_cast<uint64_t>(actions[a]));

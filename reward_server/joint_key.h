@@ -9,9 +9,10 @@ namespace imca::reward {
 
 // Builds count-table keys from compact states and actions.
 //
-// A joint key encodes the object bits z and the agents' (cell, action) pairs
-// in a slot order given by the caller (identity, canonical or a random
-// permutation). When z bits + n * (cell bits + action bits) fit in 64 bits the
+// A joint key encodes the object bits z, the cells of the non-player entities
+// (the prey) and the agents' (cell, action) pairs in a slot order given by the
+// caller (identity, canonical or a random permutation). When z bits +
+// m * cell bits + n * (cell bits + action bits) fit in 64 bits the
 // key is the exact bit-packing of those fields (no collisions: coop_nav 45x7
 // with 2 agents needs 26 bits); otherwise it is a 64-bit mix of the same
 // fields, where two distinct pairs collide with probability 2^-64 and the
@@ -35,6 +36,7 @@ class JointKeyCodec {
 
  private:
   int n_;
+  int m_;
   int object_bits_;
   int cell_bits_;
   int action_bits_;

@@ -18,7 +18,7 @@ import time
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-SCENARIOS = ["coop_nav"]
+SCENARIOS = ["coop_nav", "predator_prey", "multi_room", "twin_buttons", "pass", "secret_room"]
 REWARDS = ["count"]
 CREDITS = ["none", "independent", "shared", "imca"]
 PERMUTATIONS = ["off", "random", "canonical"]
@@ -47,6 +47,9 @@ def parse_args(argv):
                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="coop_nav", choices=SCENARIOS)
     p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
+    p.add_argument("--num-agents", type=int, default=0, help="agents (0: the scenario default)")
+    p.add_argument("--step-limit", type=int, default=0, help="episode step limit (0: the scenario default)")
+    p.add_argument("--view-radius", type=int, default=0, help="partial observation radius (0: full)")
     p.add_argument("--reward", default="count", choices=REWARDS, help="global novelty kind")
     p.add_argument("--credit", default="imca", choices=CREDITS)
     p.add_argument("--permutation", default="off", choices=PERMUTATIONS)
@@ -80,6 +83,9 @@ def parse_args(argv):
         args.out = args.resume
     if args.beta < 0:
         p.error("argument --beta: must be >= 0")
+    for flag in ("num_agents", "step_limit", "view_radius"):
+        if getattr(args, flag) < 0:
+            p.error(f"argument --{flag.replace('_', '-')}: must be >= 0")
     if args.temperature <= 0:
         p.error("argument --temperature: must be > 0")
     if args.map and not os.path.isfile(args.map):
@@ -237,7 +243,8 @@ def run(args):
     with open(os.path.join(run_dir, "config.json"), "w") as f:
         json.dump(config, f, indent=2)
 
-    scenario_flags = [f"--scenario={args.scenario}", f"--map={config['map']}"]
+    scenario_flags = [f"--scenario={args.scenario}", f"--map={config['map']}", f"--num_agents={args.num_agents}",
+                      f"--step_limit={args.step_limit}", f"--view_radius={args.view_radius}"]
     services = Services(run_dir)
     rows = []
     interrupted = False
