@@ -13,7 +13,7 @@ namespace imca::reward {
 // (the prey) and the agents' (cell, action) pairs in a slot order given by the
 // caller (identity, canonical or a random permutation). When z bits +
 // m * cell bits + n * (cell bits + action bits) fit in 64 bits the
-// key is the exact bit-packing of those fields (no collisions: coop_nav 45x7
+// key is the exact bit-packing of those fields (no collisions: coop_nav 43x9
 // with 2 agents needs 26 bits); otherwise it is a 64-bit mix of the same
 // fields, where two distinct pairs collide with probability 2^-64 and the
 // chance of any collision among N keys is about N^2 / 2^65 (3e-4 at 10^8

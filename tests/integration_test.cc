@@ -174,6 +174,44 @@ TEST(IntegrationTest, EachCreditModeSplitsAsDocumented) {
   }
 }
 
+// Every scenario trains through the real services until the learner's budget.
+class ScenarioPipelineTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ScenarioPipelineTest, TrainsToTheBudgetAndStops) {
+  const std::string scenario = GetParam();
+  const std::string dir = TempDir("scenario_" + scenario);
+  Subprocess reward_server({kBin + "/reward_server", "--listen=127.0.0.1:0", "--port_file=" + dir + "/reward.port",
+                            "--scenario=" + scenario},
+                           dir + "/reward_server.log");
+  ASSERT_TRUE(reward_server.Start());
+  const int reward_port = WaitForPortFile(dir + "/reward.port", reward_server, std::chrono::seconds(30));
+  ASSERT_GT(reward_port, 0) << reward_server.Log();
+  Subprocess learner({kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port",
+                      "--scenario=" + scenario, "--run_dir=" + dir + "/run", "--steps=3072", "--batch_steps=1024"},
+                     dir + "/learner.log");
+  ASSERT_TRUE(learner.Start());
+  const int learner_port = WaitForPortFile(dir + "/learner.port", learner, std::chrono::seconds(60));
+  ASSERT_GT(learner_port, 0) << learner.Log();
+  Subprocess actor({kBin + "/actor", "--learner=127.0.0.1:" + std::to_string(learner_port),
+                    "--reward_server=127.0.0.1:" + std::to_string(reward_port), "--scenario=" + scenario,
+                    "--envs=8", "--unroll_length=32", "--actor_id=actor-" + scenario},
+                   dir + "/actor.log");
+  ASSERT_TRUE(actor.Start());
+  EXPECT_EQ(learner.Wait(std::chrono::seconds(120)), 0) << learner.Log() << actor.Log();
+  // The actor sees the learner's budget done and stops by itself, or on SIGTERM.
+  if (actor.Wait(std::chrono::seconds(5)) == -1) actor.Signal(SIGTERM);
+  EXPECT_EQ(actor.Wait(std::chrono::seconds(30)), 0) << actor.Log();
+  reward_server.Signal(SIGTERM);
+  EXPECT_EQ(reward_server.Wait(std::chrono::seconds(30)), 0) << reward_server.Log();
+  std::ifstream metrics(dir + "/run/metrics.csv");
+  int rows = -1;
+  for (std::string line; std::getline(metrics, line);) ++rows;
+  EXPECT_EQ(rows, 3) << "one metrics row per iteration";
+}
+
+INSTANTIATE_TEST_SUITE_P(AllScenarios, ScenarioPipelineTest, ::testing::ValuesIn(env::ScenarioNames()),
+                         [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
+
 TEST(IntegrationTest, PortInUseIsAOneLineError) {
   const std::string dir = TempDir("port");
   int port = 0;

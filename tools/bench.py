@@ -1,8 +1,9 @@
 #!/usr/bin/python3
-"""./imca bench speed|learn: benchmarks run by hand (never in CI).
+"""./imca bench speed|env|learn: benchmarks run by hand (never in CI).
 
 speed  component ceilings (bench_speed) and end-to-end training throughput,
        with the ratio end-to-end / learner-only.
+env    joint env steps/s of every scenario on one core (vectorised).
 learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds on
        the default coop_nav map; final success rate and env steps to 90%.
 """
@@ -56,6 +57,13 @@ def speed(args, base):
     print(f"ratio end_to_end / learner_only(1 thread) {e2e / learner:.2f}")
 
 
+def env_bench(args, base):
+    r = subprocess.run([os.path.join(BIN, "bench_env"), str(args.rounds)], capture_output=True, text=True)
+    print(r.stdout, end="")
+    if r.returncode != 0:
+        sys.exit(f"imca bench: bench_env failed: {r.stderr.strip()}")
+
+
 def learn(args, base):
     modes = args.credits.split(",")
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -87,6 +95,8 @@ def main(argv):
     s.add_argument("--rounds", type=int, default=7)
     s.add_argument("--repeats", type=int, default=3)
     s.add_argument("--steps", type=int, default=600_000)
+    e = sub.add_parser("env")
+    e.add_argument("--rounds", type=int, default=7)
     l = sub.add_parser("learn")
     l.add_argument("--credits", default="none,shared,independent,imca")
     l.add_argument("--seeds", default="1,2,3")
@@ -94,7 +104,7 @@ def main(argv):
     args = p.parse_args(argv)
     base = os.path.join(ROOT, "runs", f"bench-{args.what}-" + datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
     os.makedirs(base, exist_ok=True)
-    speed(args, base) if args.what == "speed" else learn(args, base)
+    {"speed": speed, "env": env_bench, "learn": learn}[args.what](args, base)
 
 
 if __name__ == "__main__":
