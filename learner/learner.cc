@@ -320,6 +320,13 @@ absl::Status Learner::SaveCheckpoint() {
   std::error_code error;
   fs::rename(dir / (stem + ".meta.tmp"), dir / (stem + ".meta"), error);
   if (error) return absl::InternalError(absl::StrCat("checkpoint rename: ", error.message()));
+  // The newest policy as a serialized imca.v1.Policy, for tools in any language.
+  {
+    std::ofstream out(fs::path(config_.run_dir) / "policy.pb.tmp", std::ios::binary | std::ios::trunc);
+    if (!CurrentPolicy()->SerializeToOstream(&out)) return absl::InternalError("cannot write policy.pb");
+  }
+  fs::rename(fs::path(config_.run_dir) / "policy.pb.tmp", fs::path(config_.run_dir) / "policy.pb", error);
+  if (error) return absl::InternalError(absl::StrCat("policy.pb rename: ", error.message()));
   // Keep the newest few.
   std::vector<fs::path> metas;
   for (const auto& entry : fs::directory_iterator(dir)) {

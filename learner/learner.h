@@ -67,7 +67,8 @@ class Learner {
   // Restores trainer, version and counters from a checkpoint directory's
   // newest checkpoint. Call before Run(). Errors: NOT_FOUND, INVALID_ARGUMENT.
   absl::Status Restore(const std::string& checkpoint_dir);
-  // Writes a checkpoint now (from the training thread only).
+  // Writes a checkpoint now (from the training thread only), and the current
+  // policy as <run_dir>/policy.pb (a serialized imca.v1.Policy).
   absl::Status SaveCheckpoint();
 
  private:

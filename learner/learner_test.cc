@@ -89,6 +89,12 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   while (std::getline(metrics, line)) ++lines;
   EXPECT_EQ(lines, 4);
 
+  // The final policy is also on disk as a serialized imca.v1.Policy.
+  std::ifstream policy_file(run_dir_ + "/policy.pb", std::ios::binary);
+  v1::Policy on_disk;
+  ASSERT_TRUE(on_disk.ParseFromIstream(&policy_file));
+  EXPECT_EQ(on_disk.version(), 3);
+
   // A new learner resumes from the final checkpoint with the same policy.
   auto resumed = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(resumed.ok());
