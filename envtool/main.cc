@@ -1,0 +1,234 @@
+// imca_env: renders, plays and scripts environments (docs/envtool.md).
+#include <unistd.h>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/flags/usage_config.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "common/env.h"
+#include "common/rng.h"
+#include "common/scenario_flags.h"
+#include "envtool/episode_io.h"
+#include "envtool/render.h"
+
+ABSL_FLAG(uint64_t, seed, 1, "seed of Reset and of the scenario's random draws");
+ABSL_FLAG(std::string, state, "", "start from this state \"z,c1,...,t\" instead of a Reset");
+ABSL_FLAG(std::string, out, "", "render: the PNG file to write");
+ABSL_FLAG(int, cell_px, 24, "pixels per cell in PNG and GIF pictures");
+ABSL_FLAG(std::string, actions, "",
+          "script: action file, one step per line (--actions=- reads standard input)");
+ABSL_FLAG(bool, json, false, "play, script: print one JSON object per line per state instead of the grid");
+ABSL_FLAG(std::string, gif, "", "play, script: save the episode as an animated GIF");
+ABSL_FLAG(int, gif_delay_cs, 40, "GIF frame delay in hundredths of a second");
+
+namespace imca::envtool {
+namespace {
+
+constexpr int kRuntimeError = 1;  // Could not write an output file.
+constexpr int kUsageError = 2;    // Bad command, flag, map, state or action input.
+constexpr const char* kActionNames[] = {"up", "down", "left", "right", "stay"};
+
+int Fail(int code, absl::string_view message) {
+  std::fprintf(stderr, "imca_env: %s\n", std::string(message).c_str());
+  return code;
+}
+
+std::string Usage() {
+  return absl::StrCat(
+      "renders, plays and scripts an IMCA environment (docs/envtool.md).\n"
+      "  imca_env render --out FILE.png [--seed N | --state z,c1,...,t]\n"
+      "  imca_env play   [--json] [--gif FILE.gif]     one line per step from stdin, q quits\n"
+      "  imca_env script --actions FILE [--json] [--gif FILE.gif]\n"
+      "Each step is one key per agent: w up, s down, a left, d right, x stay (or numbers 0..A-1).\n"
+      "Scenarios (--scenario): ",
+      absl::StrJoin(env::ScenarioNames(), ", "), "; maps: --map (default maps/<scenario>.txt).");
+}
+
+// One episode: its state and random draws, printing each state as text or
+// JSON and adding a frame per state to the GIF, if any. Not thread-safe.
+class Episode {
+ public:
+  Episode(const env::Scenario& scenario, const Renderer& renderer, std::vector<int32_t> state, uint64_t seed,
+          bool json, GifWriter* gif)
+      : scenario_(scenario),
+        renderer_(renderer),
+        state_(std::move(state)),
+        rng_(seed),
+        json_(json),
+        gif_(gif),
+        rewards_(scenario.num_agents()) {}
+
+  bool over() const { return outcome_.terminated || outcome_.truncated; }
+  int t() const { return state_[scenario_.step_index()]; }
+
+  // Prints the initial state. Call once, before Step.
+  void Start() { Show({}, {}); }
+  // Steps with one action per agent (each in [0, num_actions)) and prints
+  // the new state. Must not be called once over().
+  void Step(const std::vector<int32_t>& actions) {
+    outcome_ = scenario_.Step(state_.data(), actions.data(), rng_, rewards_.data());
+    Show(actions, rewards_);
+  }
+
+  // The first error of adding a frame to the GIF.
+  const absl::Status& gif_status() const { return gif_status_; }
+
+ private:
+  void Show(const std::vector<int32_t>& actions, const std::vector<float>& rewards) {
+    if (gif_ != nullptr && gif_status_.ok()) gif_status_ = gif_->AddFrame(renderer_.Draw(state_.data()));
+    if (json_) {
+      std::printf("%s\n", StateJson(scenario_, state_.data(), actions, rewards, outcome_).c_str());
+    } else {
+      if (!actions.empty()) {
+        std::vector<const char*> names;
+        for (int32_t u : actions) names.push_back(kActionNames[u]);
+        std::printf("actions: %s   rewards: %s\n", absl::StrJoin(names, " ").c_str(),
+                    absl::StrJoin(rewards, " ").c_str());
+      }
+      std::printf("%s", scenario_.Render(state_.data()).c_str());
+      if (over()) {
+        std::printf("episode over at t=%d: %s\n", t(),
+                    outcome_.success      ? "success"
+                    : outcome_.terminated ? "failure"
+                                          : "step limit reached");
+      }
+    }
+    std::fflush(stdout);
+  }
+
+  const env::Scenario& scenario_;
+  const Renderer& renderer_;
+  std::vector<int32_t> state_;
+  Rng rng_;
+  const bool json_;
+  GifWriter* const gif_;  // Null: no --gif.
+  absl::Status gif_status_;
+  std::vector<float> rewards_;
+  env::StepOutcome outcome_;
+};
+
+void Play(Episode& episode, const env::Scenario& scenario, bool json) {
+  const bool prompt = !json && isatty(STDIN_FILENO);
+  if (prompt) {
+    std::printf("one key per agent (%d) per line: w up, s down, a left, d right%s; q quits\n",
+                scenario.num_agents(), scenario.num_actions() > env::kStay ? ", x stay" : "");
+  }
+  episode.Start();
+  std::string line;
+  while (!episode.over()) {
+    if (prompt) {
+      std::printf("> ");
+      std::fflush(stdout);
+    }
+    if (!std::getline(std::cin, line) || absl::StripAsciiWhitespace(line) == "q") break;
+    auto actions = ParseActionLine(line, scenario.num_agents(), scenario.num_actions());
+    if (!actions.ok()) {
+      const std::string message(actions.status().message());
+      std::printf(json ? "{\"error\":%s}\n" : "%s\n", json ? JsonString(message).c_str() : message.c_str());
+      std::fflush(stdout);
+      continue;
+    }
+    episode.Step(*actions);
+  }
+}
+
+void Script(Episode& episode, const std::vector<std::vector<int32_t>>& steps) {
+  episode.Start();
+  size_t used = 0;
+  while (used < steps.size() && !episode.over()) episode.Step(steps[used++]);
+  if (used < steps.size()) {
+    std::fprintf(stderr, "imca_env: the episode ended at t=%d; %zu later action lines not used\n",
+                 episode.t(), steps.size() - used);
+  }
+}
+
+int Main(const std::vector<char*>& args) {
+  if (args.size() != 2) return Fail(kUsageError, "expected one command: render, play or script (--help)");
+  const std::string command = args[1];
+  if (command != "render" && command != "play" && command != "script") {
+    return Fail(kUsageError, absl::StrCat("unknown command '", command, "' (render, play, script)"));
+  }
+  auto scenario_or = ScenarioFromFlags();
+  if (!scenario_or.ok()) return Fail(kUsageError, scenario_or.status().message());
+  const env::Scenario& scenario = **scenario_or;
+  auto renderer = Renderer::Create(&scenario, absl::GetFlag(FLAGS_cell_px));
+  if (!renderer.ok()) return Fail(kUsageError, absl::StrCat("--cell_px: ", renderer.status().message()));
+
+  const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  std::vector<int32_t> state(scenario.state_size());
+  if (const std::string text = absl::GetFlag(FLAGS_state); !text.empty()) {
+    auto parsed = ParseState(text, scenario);
+    if (!parsed.ok()) return Fail(kUsageError, absl::StrCat("--state: ", parsed.status().message()));
+    state = *std::move(parsed);
+  } else {
+    Rng rng(seed);
+    scenario.Reset(rng, state.data());
+  }
+
+  if (command == "render") {
+    const std::string out = absl::GetFlag(FLAGS_out);
+    if (out.empty()) return Fail(kUsageError, "--out: the PNG file to write is required");
+    const absl::Status written = WritePng(renderer->Draw(state.data()), out);
+    if (!written.ok()) return Fail(kRuntimeError, written.message());
+    std::printf("wrote %s (%dx%d px)\n", out.c_str(), renderer->width(), renderer->height());
+    return 0;
+  }
+
+  std::vector<std::vector<int32_t>> steps;
+  if (command == "script") {
+    const std::string path = absl::GetFlag(FLAGS_actions);
+    if (path.empty()) return Fail(kUsageError, "--actions: the action file is required");
+    auto parsed = ReadActionFile(path, scenario.num_agents(), scenario.num_actions());
+    if (!parsed.ok()) return Fail(kUsageError, parsed.status().message());
+    steps = *std::move(parsed);
+  }
+  const int delay_cs = absl::GetFlag(FLAGS_gif_delay_cs);
+  if (delay_cs < 1 || delay_cs > 65535) return Fail(kUsageError, "--gif_delay_cs: not in [1, 65535]");
+  std::unique_ptr<GifWriter> gif;
+  if (const std::string path = absl::GetFlag(FLAGS_gif); !path.empty()) {
+    auto created = GifWriter::Create(path, renderer->width(), renderer->height(), delay_cs);
+    if (!created.ok()) return Fail(kRuntimeError, created.status().message());
+    gif = *std::move(created);
+  }
+  const bool json = absl::GetFlag(FLAGS_json);
+  // The episode's draws start afresh from the seed, so --state holding the
+  // state this Reset made replays the same episode.
+  Episode episode(scenario, *renderer, std::move(state), seed, json, gif.get());
+  if (command == "play") {
+    Play(episode, scenario, json);
+  } else {
+    Script(episode, steps);
+  }
+  if (gif == nullptr) return 0;
+  absl::Status written = episode.gif_status();
+  if (written.ok()) written = gif->Close();
+  if (!written.ok()) return Fail(kRuntimeError, written.message());
+  std::fprintf(stderr, "imca_env: wrote %s (%d frames)\n", absl::GetFlag(FLAGS_gif).c_str(),
+               gif->num_frames());
+  return 0;
+}
+
+}  // namespace
+}  // namespace imca::envtool
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage(imca::envtool::Usage());
+  // --help lists this file's flags and the scenario flags (absl's default
+  // matches files named after the program).
+  absl::FlagsUsageConfig usage;
+  usage.contains_help_flags = usage.contains_helpshort_flags = [](absl::string_view file) {
+    return absl::EndsWith(file, "envtool/main.cc") || absl::EndsWith(file, "common/scenario_flags.cc");
+  };
+  absl::SetFlagsUsageConfig(usage);
+  return imca::envtool::Main(absl::ParseCommandLine(argc, argv));
+}
