@@ -71,16 +71,7 @@ void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions,
   policy_->Probabilities(obs_.data(), num_envs * n, probs);
   for (int row = 0; row < num_envs * n; ++row) {
     const float* p = probs + row * a_count;
-    const double x = rng_.UniformDouble();
-    double cumulative = 0;
-    int u = a_count - 1;
-    for (int j = 0; j < a_count; ++j) {
-      cumulative += p[j];
-      if (x < cumulative) {
-        u = j;
-        break;
-      }
-    }
+    const int u = SampleCategorical(p, a_count, rng_.UniformDouble());
     actions[row] = u;
     log_probs[row] = std::log(std::max(p[u], 1e-12f));
   }

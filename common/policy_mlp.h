@@ -39,6 +39,17 @@ class PolicyMlp {
   std::vector<Matrix> scratch_;
 };
 
+// Index drawn from the categorical distribution probs[0..count) given a
+// uniform u in [0, 1) (the last index absorbs rounding). Pure.
+inline int SampleCategorical(const float* probs, int count, double u) {
+  double cumulative = 0;
+  for (int j = 0; j < count; ++j) {
+    cumulative += probs[j];
+    if (u < cumulative) return j;
+  }
+  return count - 1;
+}
+
 }  // namespace imca
 
 #endif  // IMCA_COMMON_POLICY_MLP_H_

@@ -2,6 +2,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <fstream>
+#include <optional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -16,6 +18,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "common/env.h"
+#include "common/featurizer.h"
+#include "common/policy_mlp.h"
 #include "common/rng.h"
 #include "common/scenario_flags.h"
 #include "envtool/episode_io.h"
@@ -30,6 +34,7 @@ ABSL_FLAG(std::string, actions, "",
 ABSL_FLAG(bool, json, false, "play, script: print one JSON object per line per state instead of the grid");
 ABSL_FLAG(std::string, gif, "", "play, script: save the episode as an animated GIF");
 ABSL_FLAG(int, gif_delay_cs, 40, "GIF frame delay in hundredths of a second");
+ABSL_FLAG(std::string, policy, "", "rollout: a policy.pb written by the learner (imca.v1.Policy)");
 
 namespace imca::envtool {
 namespace {
@@ -49,6 +54,7 @@ std::string Usage() {
       "  imca_env render --out FILE.png [--seed N | --state z,c1,...,t]\n"
       "  imca_env play   [--json] [--gif FILE.gif]     one line per step from stdin, q quits\n"
       "  imca_env script --actions FILE [--json] [--gif FILE.gif]\n"
+      "  imca_env rollout --policy RUN/policy.pb [--json] [--gif FILE.gif]   one episode of a trained policy\n"
       "Each step is one key per agent: w up, s down, a left, d right, x stay (or numbers 0..A-1).\n"
       "Scenarios (--scenario): ",
       absl::StrJoin(env::ScenarioNames(), ", "), "; maps: --map (default maps/<scenario>.txt).");
@@ -69,6 +75,7 @@ class Episode {
         rewards_(scenario.num_agents()) {}
 
   bool over() const { return outcome_.terminated || outcome_.truncated; }
+  const int32_t* state() const { return state_.data(); }
   int t() const { return state_[scenario_.step_index()]; }
 
   // Prints the initial state. Call once, before Step.
@@ -152,11 +159,42 @@ void Script(Episode& episode, const std::vector<std::vector<int32_t>>& steps) {
   }
 }
 
+// One episode with actions sampled from `policy`, as an actor would.
+void Rollout(Episode& episode, const env::Scenario& scenario, PolicyMlp& policy, uint64_t seed) {
+  const env::Featurizer featurizer(scenario);
+  const int n = scenario.num_agents(), a_count = scenario.num_actions();
+  std::vector<float> obs(static_cast<size_t>(n) * featurizer.obs_dim()), probs(n * a_count);
+  std::vector<int32_t> actions(n);
+  Rng rng(seed * 7919 + 17);
+  episode.Start();
+  while (!episode.over()) {
+    for (int a = 0; a < n; ++a) featurizer.Observe(episode.state(), a, &obs[a * featurizer.obs_dim()]);
+    policy.Probabilities(obs.data(), n, probs.data());
+    for (int a = 0; a < n; ++a) actions[a] = SampleCategorical(&probs[a * a_count], a_count, rng.UniformDouble());
+    episode.Step(actions);
+  }
+}
+
+absl::StatusOr<PolicyMlp> LoadPolicy(const std::string& path, const env::Scenario& scenario) {
+  std::ifstream in(path, std::ios::binary);
+  v1::Policy proto;
+  if (!in || !proto.ParseFromIstream(&in)) {
+    return absl::InvalidArgumentError(absl::StrCat("cannot read a policy from '", path, "'"));
+  }
+  absl::StatusOr<PolicyMlp> policy = PolicyMlp::FromProto(proto);
+  if (!policy.ok()) return policy.status();
+  if (policy->obs_dim() != env::Featurizer(scenario).obs_dim() || policy->num_actions() != scenario.num_actions()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("'", path, "' was trained on another scenario or map (observation or action size differs)"));
+  }
+  return policy;
+}
+
 int Main(const std::vector<char*>& args) {
-  if (args.size() != 2) return Fail(kUsageError, "expected one command: render, play or script (--help)");
+  if (args.size() != 2) return Fail(kUsageError, "expected one command: render, play, script or rollout (--help)");
   const std::string command = args[1];
-  if (command != "render" && command != "play" && command != "script") {
-    return Fail(kUsageError, absl::StrCat("unknown command '", command, "' (render, play, script)"));
+  if (command != "render" && command != "play" && command != "script" && command != "rollout") {
+    return Fail(kUsageError, absl::StrCat("unknown command '", command, "' (render, play, script, rollout)"));
   }
   auto scenario_or = ScenarioFromFlags();
   if (!scenario_or.ok()) return Fail(kUsageError, scenario_or.status().message());
@@ -192,6 +230,14 @@ int Main(const std::vector<char*>& args) {
     if (!parsed.ok()) return Fail(kUsageError, parsed.status().message());
     steps = *std::move(parsed);
   }
+  std::optional<PolicyMlp> policy;
+  if (command == "rollout") {
+    const std::string path = absl::GetFlag(FLAGS_policy);
+    if (path.empty()) return Fail(kUsageError, "--policy: the policy.pb file is required");
+    auto loaded = LoadPolicy(path, scenario);
+    if (!loaded.ok()) return Fail(kUsageError, absl::StrCat("--policy: ", loaded.status().message()));
+    policy = *std::move(loaded);
+  }
   const int delay_cs = absl::GetFlag(FLAGS_gif_delay_cs);
   if (delay_cs < 1 || delay_cs > 65535) return Fail(kUsageError, "--gif_delay_cs: not in [1, 65535]");
   std::unique_ptr<GifWriter> gif;
@@ -206,6 +252,8 @@ int Main(const std::vector<char*>& args) {
   Episode episode(scenario, *renderer, std::move(state), seed, json, gif.get());
   if (command == "play") {
     Play(episode, scenario, json);
+  } else if (command == "rollout") {
+    Rollout(episode, scenario, *policy, seed);
   } else {
     Script(episode, steps);
   }

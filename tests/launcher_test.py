@@ -54,7 +54,8 @@ class LauncherRunTest(unittest.TestCase):
             out = os.path.join(tmp, "run")
             r = run(["--steps", "12000", "--out", out] + SMALL)
             self.assertEqual(r.returncode, 0, r.stderr)
-            for name in ["config.json", "metrics.csv", "learning_curve.png", "summary.json"]:
+            for name in ["config.json", "metrics.csv", "learning_curve.png", "summary.json", "policy.pb",
+                         "episode.gif"]:
                 self.assertTrue(os.path.exists(os.path.join(out, name)), name)
             with open(os.path.join(out, "metrics.csv")) as f:
                 rows = list(csv.DictReader(f))

@@ -230,6 +230,19 @@ def plot(run_dir, rows, title):
     plt.close(fig)
 
 
+def episode_gif(run_dir, scenario_flags, seed):
+    """One episode of the final policy as episode.gif (best effort: a run
+    stopped before its first checkpoint has no policy.pb)."""
+    policy = os.path.join(run_dir, "policy.pb")
+    if not os.path.exists(policy):
+        return
+    r = subprocess.run([os.path.join(BIN, "imca_env"), "rollout", *scenario_flags, f"--policy={policy}",
+                        f"--seed={seed}", "--json", f"--gif={os.path.join(run_dir, 'episode.gif')}"],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        print(f"imca train: no episode.gif: {r.stderr.strip()}", file=sys.stderr)
+
+
 def run(args):
     run_dir = args.out or os.path.join("runs", datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
     run_dir = os.path.abspath(run_dir)
@@ -308,6 +321,7 @@ def run(args):
         if rows:
             plot(run_dir, rows, f"{args.scenario} / {args.reward} / credit={args.credit} / "
                                 f"permutation={args.permutation} / seed={args.seed}")
+        episode_gif(run_dir, scenario_flags, args.seed)
     if not args.quiet:
         print(file=sys.stderr)
     with open(os.path.join(run_dir, "summary.json")) as f:
