@@ -222,5 +222,37 @@ TEST(FeaturizerTest, OneHotLayoutRelativeOrderAndAgentId) {
   EXPECT_FLOAT_EQ(sum, 4 + 1 + 1 + 0.5f);
 }
 
+TEST(FeaturizerTest, ViewRadiusHidesFarAgentsAndThePrey) {
+  auto map = GridMap::Parse("ZZZZZ\nZZZZZ\n.....\n.....\nSSSSS\n", "field");
+  ASSERT_TRUE(map.ok());
+  ScenarioConfig config;
+  config.name = "predator_prey";
+  config.view_radius = 1;
+  auto s = MakeScenarioWithMap(config, *std::move(map));
+  ASSERT_TRUE(s.ok()) << s.status();
+  Featurizer f(**s);
+  const int block = 5 + 5;
+  EXPECT_EQ(f.obs_dim(), 5 * block + 0 + 4 + 1);
+  // Predators at 20 (4,0), 16 (3,1), 24 (4,4), 14 (2,4); prey at 0 (0,0).
+  const std::vector<int32_t> state = {0, 20, 16, 24, 14, 0, 0};
+  std::vector<float> obs(f.obs_dim());
+  f.Observe(state.data(), 0, obs.data());
+  auto visible = [&](int slot) {
+    float sum = 0;
+    for (int i = 0; i < block; ++i) sum += obs[slot * block + i];
+    return sum;
+  };
+  EXPECT_EQ(visible(0), 2.0f);  // Itself.
+  EXPECT_EQ(visible(1), 2.0f);  // Predator 2, one cell diagonally: seen.
+  EXPECT_EQ(visible(2), 0.0f);  // Predator 3, four columns away: hidden.
+  EXPECT_EQ(visible(3), 0.0f);  // Predator 4: hidden.
+  EXPECT_EQ(visible(4), 0.0f);  // The prey, four rows away: hidden.
+  std::vector<float> global(f.global_dim());
+  f.GlobalState(state.data(), global.data());
+  float sum = 0;
+  for (float x : global) sum += x;
+  EXPECT_EQ(sum, 10.0f);  // The critic sees everyone.
+}
+
 }  // namespace
 }  // namespace imca::env
