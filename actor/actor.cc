@@ -41,7 +41,13 @@ bool Actor::RefreshPolicy(bool wait) {
     v1::Policy policy;
     const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
     if (status.ok()) {
-      if (policy.tensors_size() == 0) return true;  // Not modified.
+      if (policy.tensors_size() == 0) {
+        // Not modified, unless the learner went back to an older checkpoint:
+        // then take whatever it has.
+        if (!policy_.has_value() || policy.version() >= policy_->version()) return true;
+        policy_.reset();
+        continue;
+      }
       absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
       if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() ||
           mlp->num_actions() != scenario_->num_actions()) {
@@ -175,10 +181,12 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     return status.ok() ? absl::UnavailableError("learner closed the stream") : FromGrpcStatus(status);
   }
   ++stream_unrolls_;
-  if (!ack.accepted() && ack.error().rfind("stale", 0) != 0) {
-    return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack.error()));
+  if (ack.accepted() || ack.error().rfind("stale", 0) == 0) return absl::OkStatus();
+  if (ack.error().rfind("ahead", 0) == 0) {
+    policy_.reset();  // The learner restarted from an older checkpoint.
+    return RefreshPolicy(/*wait=*/true) ? absl::OkStatus() : absl::UnavailableError("no policy");
   }
-  return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack.error()));
 }
 
 bool Actor::LearnerDone() {
@@ -193,6 +201,7 @@ absl::Status Actor::Run() {
   Backoff backoff;
   v1::Unroll unroll;  // Reused: Clear() keeps the packed fields' capacity.
   while (!ShutdownRequested()) {
+    if (!policy_.has_value() && !RefreshPolicy(/*wait=*/true)) break;
     unroll.Clear();
     Rollout(&unroll);
     absl::Status status = Score(&unroll);
@@ -203,6 +212,8 @@ absl::Status Actor::Run() {
     } else if (absl::IsInvalidArgument(status)) {
       // A bug, not a transient fault: say so loudly and stop.
       return status;
+    } else if (absl::IsOutOfRange(status)) {
+      break;  // The learner's budget is done.
     } else {
       std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
                    std::string(status.message()).c_str());

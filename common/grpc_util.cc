@@ -1,5 +1,7 @@
 #include "common/grpc_util.h"
 
+#include <unistd.h>
+
 #include <atomic>
 #include <csignal>
 #include <thread>
@@ -68,6 +70,10 @@ std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target) {
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
   return grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
 }
+
+Backoff::Backoff()
+    : state_(static_cast<uint64_t>(getpid()) * 0x9e3779b97f4a7c15ULL ^ reinterpret_cast<uintptr_t>(this) ^
+             static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count())) {}
 
 void Backoff::Wait() {
   const int64_t cap_ms = std::min<int64_t>(5000, int64_t{50} << std::min(attempt_, 10));

@@ -44,13 +44,16 @@ inline std::chrono::system_clock::time_point DeadlineIn(std::chrono::millisecond
 // a 5 s cap. Not thread-safe.
 class Backoff {
  public:
+  // The jitter is seeded per process and object, so that many clients that
+  // lost one server do not retry in lockstep.
+  Backoff();
   // Sleeps for the next delay (interruptible by shutdown, checked every 50 ms).
   void Wait();
   void Reset() { attempt_ = 0; }
 
  private:
   int attempt_ = 0;
-  uint64_t state_ = 0x1234567;
+  uint64_t state_;
 };
 
 // Largest message the servers and clients accept.

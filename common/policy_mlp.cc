@@ -52,18 +52,19 @@ absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
 void PolicyMlp::Probabilities(const float* obs, int batch, float* probs) {
   Eigen::Map<const Matrix> x(obs, batch, obs_dim_);
   const size_t layers = weights_.size();
+  // Scratch only grows, so alternating batch sizes allocate nothing.
   for (size_t i = 0; i < layers; ++i) {
-    Matrix& out = scratch_[i];
-    out.resize(batch, weights_[i].rows());
+    if (scratch_[i].rows() < batch) scratch_[i].resize(batch, weights_[i].rows());
+    auto out = scratch_[i].topRows(batch);
     if (i == 0) {
       out.noalias() = x * weights_[i].transpose();
     } else {
-      out.noalias() = scratch_[i - 1] * weights_[i].transpose();
+      out.noalias() = scratch_[i - 1].topRows(batch) * weights_[i].transpose();
     }
     out.rowwise() += biases_[i];
     if (i + 1 < layers) out = out.array().tanh();
   }
-  const Matrix& logits = scratch_[layers - 1];
+  const auto logits = scratch_[layers - 1].topRows(batch);
   Eigen::Map<Matrix> p(probs, batch, num_actions_);
   for (int r = 0; r < batch; ++r) {
     const float max = logits.row(r).maxCoeff();

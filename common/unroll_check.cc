@@ -109,6 +109,9 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
       }
     }
   }
+  IMCA_RETURN_IF_ERROR(CheckFinite(u.episode_returns(), "episode_returns"));
+  IMCA_RETURN_IF_ERROR(CheckFinite(u.eval_returns(), "eval_returns"));
+  if (u.actor_id().size() > 256) return absl::InvalidArgumentError("unroll.actor_id is longer than 256 bytes");
   if (needs.intrinsic_rewards) {
     IMCA_RETURN_IF_ERROR(CheckSize(u.intrinsic_rewards(), "intrinsic_rewards", transitions * n));
     IMCA_RETURN_IF_ERROR(CheckFinite(u.intrinsic_rewards(), "intrinsic_rewards"));

@@ -76,11 +76,12 @@ absl::Status Learner::Push(v1::Unroll unroll) {
     return valid;
   }
   absl::MutexLock lock(&mu_);
-  if (stopping_) return absl::UnavailableError("learner is stopping");
+  if (stopping_) return StoppedStatus();
   if (unroll.policy_version() > version_) {
+    // A learner restarted from an older checkpoint: the actor must refetch.
     ++unrolls_rejected_;
-    return absl::InvalidArgumentError(absl::StrCat("unroll.policy_version ", unroll.policy_version(),
-                                                   " is newer than the learner's ", version_));
+    return absl::FailedPreconditionError(absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
+                                                      " is newer than the learner's ", version_));
   }
   if (version_ - unroll.policy_version() > config_.max_policy_lag) {
     ++unrolls_stale_;
@@ -93,7 +94,7 @@ absl::Status Learner::Push(v1::Unroll unroll) {
         return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
       },
       this));
-  if (stopping_) return absl::UnavailableError("learner is stopping");
+  if (stopping_) return StoppedStatus();
   ++unrolls_received_;
   actors_.insert(unroll.actor_id());
   for (int i = 0; i < unroll.episode_returns_size(); ++i) {
@@ -104,6 +105,11 @@ absl::Status Learner::Push(v1::Unroll unroll) {
   queued_steps_ += Steps(unroll);
   queue_.push_back(std::move(unroll));
   return absl::OkStatus();
+}
+
+absl::Status Learner::StoppedStatus() const {
+  return done_ ? absl::OutOfRangeError("budget done: the learner has trained its --steps")
+               : absl::UnavailableError("learner is stopping");
 }
 
 std::shared_ptr<const v1::Policy> Learner::CurrentPolicy() const {
@@ -323,7 +329,9 @@ absl::Status Learner::SaveCheckpoint() {
   // The newest policy as a serialized imca.v1.Policy, for tools in any language.
   {
     std::ofstream out(fs::path(config_.run_dir) / "policy.pb.tmp", std::ios::binary | std::ios::trunc);
-    if (!CurrentPolicy()->SerializeToOstream(&out)) return absl::InternalError("cannot write policy.pb");
+    if (!CurrentPolicy()->SerializeToOstream(&out) || !out.flush()) {
+      return absl::InternalError("cannot write policy.pb");
+    }
   }
   fs::rename(fs::path(config_.run_dir) / "policy.pb.tmp", fs::path(config_.run_dir) / "policy.pb", error);
   if (error) return absl::InternalError(absl::StrCat("policy.pb rename: ", error.message()));

@@ -51,7 +51,10 @@ class Learner {
   // Validates `unroll` and queues it for training; blocks while the queue is
   // full (back-pressure). Returns OK when queued; INVALID_ARGUMENT naming the
   // field; FAILED_PRECONDITION "stale ..." when it is more than max_policy_lag
-  // versions old (counted, dropped); UNAVAILABLE once the learner is stopping.
+  // versions old (counted, dropped) or "ahead ..." when its version is newer
+  // than the learner's (a learner resumed from an older checkpoint: refetch
+  // the policy); OUT_OF_RANGE once the budget is done; UNAVAILABLE once the
+  // learner is stopping for another reason.
   absl::Status Push(v1::Unroll unroll);
 
   // The newest published policy (never null after Create).
@@ -77,6 +80,7 @@ class Learner {
 
   // Waits for unrolls worth batch_steps steps (or stop); drops stale ones.
   std::vector<v1::Unroll> NextBatch();
+  absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
   void BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch);
   void Publish();

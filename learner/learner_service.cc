@@ -10,7 +10,8 @@ grpc::Status LearnerServiceImpl::PushUnrolls(
   v1::PushUnrollsRequest request;
   while (stream->Read(&request)) {
     const absl::Status status = learner_->Push(std::move(*request.mutable_unroll()));
-    if (absl::IsUnavailable(status)) return ToGrpcStatus(status);
+    // Ends the stream: the learner stops, or its budget is done.
+    if (absl::IsUnavailable(status) || absl::IsOutOfRange(status)) return ToGrpcStatus(status);
     v1::PushUnrollsResponse ack;
     ack.set_accepted(status.ok());
     if (!status.ok()) ack.set_error(std::string(status.message()));

@@ -50,8 +50,10 @@ TEST_F(LearnerTest, RejectsBadUnrollsWithTheFieldName) {
   bad = Unroll(0, 1);
   bad.set_behaviour_log_probs(0, 0.5f);
   EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.behaviour_log_probs[0]"));
-  bad = Unroll(7, 1);
-  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.policy_version"));
+  bad = Unroll(7, 1);  // Ahead of the learner (it resumed from an older checkpoint): retryable.
+  status = (*learner)->Push(bad);
+  EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(status.message(), HasSubstr("ahead: unroll.policy_version"));
   EXPECT_EQ((*learner)->Status().unrolls_rejected(), 3);
   EXPECT_EQ((*learner)->Status().unrolls_received(), 0);
 }
@@ -79,7 +81,8 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   EXPECT_EQ(status.policy_version(), 3);
   EXPECT_EQ(status.env_steps(), 3 * 256);
   EXPECT_EQ(status.unrolls_dropped_stale(), 1);
-  EXPECT_EQ(l->Push(Unroll(3, seed++)).code(), absl::StatusCode::kUnavailable);
+  // After the budget, pushes learn that it is done (actors stop on this).
+  EXPECT_EQ(l->Push(Unroll(3, seed++)).code(), absl::StatusCode::kOutOfRange);
   EXPECT_EQ(l->CurrentPolicy()->tensors_size(), 6);
 
   // metrics.csv has a header and one row per iteration.

@@ -102,6 +102,11 @@ int main(int argc, char** argv) {
   const absl::Status run = (*learner)->Run();
   finished.store(true);
   watcher.join();
+  // After the budget, keep answering for a moment so that actors learn it is
+  // done (OUT_OF_RANGE on push, done in GetStatus) instead of retrying.
+  for (int i = 0; i < 40 && run.ok() && (*learner)->Status().done() && !ShutdownRequested(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(3)));
   if (!run.ok()) return Fail(absl::StrCat("training failed: ", run.message()));
   const v1::LearnerStatus status = (*learner)->Status();

@@ -19,7 +19,8 @@ float Novelty(uint32_t count_before) {
 }  // namespace
 
 CountScorer::CountScorer(const env::Scenario& scenario, const ScorerConfig& config)
-    : n_(scenario.num_agents()),
+    : scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
+      n_(scenario.num_agents()),
       num_actions_(scenario.num_actions()),
       k_(scenario.state_size()),
       config_(config),
@@ -117,20 +118,28 @@ void CountScorer::FillStats(v1::RewardStats* stats) const {
 }
 
 std::string CountScorer::ConfigTag() const {
-  return absl::StrCat(kMagic, " n=", n_, " A=", num_actions_, " credit=", CreditName(config_.credit),
+  return absl::StrCat(kMagic, " ", scenario_tag_, " n=", n_, " A=", num_actions_,
+                      " exact=", codec_.exact(), " credit=", CreditName(config_.credit),
                       " permutation=", PermutationName(config_.permutation), "\n");
 }
 
 absl::Status CountScorer::Save(const std::string& path) const {
+  absl::MutexLock save_lock(&save_mu_);
+  // Copy under the lock (fast), write without it, so Score is not blocked by I/O.
+  CountTable global, local;
+  {
+    absl::MutexLock lock(&mu_);
+    global = global_;
+    local = local_;
+  }
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return absl::InternalError(absl::StrCat("cannot write snapshot '", tmp, "'"));
     const std::string tag = ConfigTag();
     out.write(tag.data(), tag.size());
-    absl::MutexLock lock(&mu_);
-    IMCA_RETURN_IF_ERROR(global_.Write(out));
-    IMCA_RETURN_IF_ERROR(local_.Write(out));
+    IMCA_RETURN_IF_ERROR(global.Write(out));
+    IMCA_RETURN_IF_ERROR(local.Write(out));
     out.flush();
     if (!out) return absl::InternalError(absl::StrCat("writing snapshot '", tmp, "' failed"));
   }

@@ -49,12 +49,15 @@ class CountScorer final : public Scorer {
   void LookupOrder(const int32_t* state, int* order) const;
   std::string ConfigTag() const;
 
+  const std::string scenario_tag_;  // Scenario name and map size, for snapshots.
   const int n_;
   const int num_actions_;
   const int k_;  // state_size
   const ScorerConfig config_;
   const JointKeyCodec codec_;
 
+  // Serialises whole snapshot writes (tmp file + rename); taken before mu_.
+  mutable absl::Mutex save_mu_;
   mutable absl::Mutex mu_;
   CountTable global_ ABSL_GUARDED_BY(mu_);
   CountTable local_ ABSL_GUARDED_BY(mu_);

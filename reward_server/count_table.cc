@@ -1,5 +1,6 @@
 #include "reward_server/count_table.h"
 
+#include <algorithm>
 #include <istream>
 #include <ostream>
 
@@ -21,7 +22,8 @@ absl::Status CountTable::Read(std::istream& in) {
     return absl::DataLossError("count table: missing entry count");
   }
   absl::flat_hash_map<uint64_t, uint32_t> counts;
-  counts.reserve(entries);
+  // A corrupt count must not trigger a giant allocation: reserve at most 2^26.
+  counts.reserve(std::min<uint64_t>(entries, uint64_t{1} << 26));
   for (uint64_t i = 0; i < entries; ++i) {
     uint64_t key;
     uint32_t count;

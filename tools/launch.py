@@ -143,13 +143,13 @@ class Services:
                 raise LaunchError(f"{name} exited with code {proc.returncode}: {self.last_log_line(name)}")
 
     def stop(self, names=None, timeout=30.0):
-        """SIGTERM then wait; returns {name: exit code}."""
+        """SIGTERM to all of `names` at once, then wait; returns {name: exit code}."""
         codes = {}
-        for name, proc in self.procs:
-            if names is not None and name not in names:
-                continue
+        chosen = [(n, p) for n, p in self.procs if names is None or n in names]
+        for name, proc in chosen:
             if proc.poll() is None:
                 proc.send_signal(signal.SIGTERM)
+        for name, proc in chosen:
             try:
                 codes[name] = proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:
@@ -291,7 +291,7 @@ def run(args):
                 os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port}",
                 f"--reward_server=127.0.0.1:{reward_port}", *scenario_flags,
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
-                f"--seed={args.seed * 1000 + i}", f"--actor_id={name}"])
+                f"--seed={args.seed * 1000 + i + 1}", f"--actor_id={name}"])
         tty = sys.stderr.isatty()
         last_print = 0.0
         while ln.poll() is None:
@@ -311,6 +311,9 @@ def run(args):
         interrupted = True
         print("\nimca train: stopping (actors, learner, reward server)...", file=sys.stderr)
     finally:
+        # A second Ctrl-C (or a hang-up) must not abandon the children mid-stop.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
         codes = services.stop(names=[n for n, _ in services.procs if n.startswith("actor-")])
         codes.update(services.stop(names=["learner"], timeout=120))
         codes.update(services.stop(names=["reward_server"], timeout=120))
