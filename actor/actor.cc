@@ -94,6 +94,7 @@ void Actor::Rollout(v1::Unroll* u) {
   u->set_num_agents(n);
   u->set_num_actions(a_count);
   u->set_state_size(k);
+  u->set_scenario_fingerprint(scenario_->fingerprint());
   u->mutable_states()->Reserve((T + 1) * E * k);
   u->mutable_next_states()->Reserve(T * E * k);
   u->mutable_actions()->Reserve(T * E * n);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <map>
 
@@ -315,6 +316,31 @@ Scenario::Scenario(GridMap map, const ScenarioConfig& config, int num_agents, in
                                                         : static_cast<float>(config.success_reward)),
       step_penalty_(std::isnan(config.step_penalty) ? default_step_penalty
                                                     : static_cast<float>(config.step_penalty)) {}
+
+uint64_t Scenario::fingerprint() const {
+  uint64_t h = 0x8a5cd789635d2dffULL;
+  auto mix = [&h](uint64_t x) {
+    uint64_t s = h ^ (x + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2));
+    h = Rng::SplitMix64(s);
+  };
+  for (char c : name()) mix(static_cast<uint8_t>(c));
+  for (int v : {map_.width(), map_.height(), num_agents_, num_npcs_, num_actions_, step_limit_, view_radius_}) mix(v);
+  uint32_t bits;
+  std::memcpy(&bits, &success_reward_, 4);
+  mix(bits);
+  std::memcpy(&bits, &step_penalty_, 4);
+  mix(bits);
+  for (int cell = 0; cell < map_.num_cells(); ++cell) {
+    mix(static_cast<uint64_t>(map_.IsWall(cell)) | static_cast<uint64_t>(map_.InPreyZone(cell)) << 1 |
+        static_cast<uint64_t>(map_.DoorAt(cell) + 1) << 2 | static_cast<uint64_t>(map_.SwitchAt(cell) + 1) << 8);
+  }
+  for (const auto* cells : {&map_.treasures(), &map_.buttons(), &map_.goal_markers(), &map_.random_spawns()}) {
+    mix(cells->size());
+    for (int32_t cell : *cells) mix(cell);
+  }
+  for (int a = 0; a < num_agents_; ++a) mix(static_cast<uint64_t>(map_.FixedSpawn(a) + 1));
+  return h == 0 ? 1 : h;
+}
 
 bool Scenario::ButtonPressed(const int32_t* state, int button) const {
   const int32_t cell = map_.buttons()[button];

@@ -62,6 +62,10 @@ class Scenario {
   int view_radius() const { return view_radius_; }
   float success_reward() const { return success_reward_; }
   float step_penalty() const { return step_penalty_; }
+  // A hash of the map layout and the rules (name, agents, entities, actions,
+  // step limit, rewards, view radius): two processes with equal fingerprints
+  // play the same game. Never 0.
+  uint64_t fingerprint() const;
   // Number of meaningful low bits of z.
   virtual int num_object_bits() const = 0;
   const GridMap& map() const { return map_; }

@@ -279,6 +279,17 @@ TEST(ScenarioRulesTest, RandomPlayKeepsEveryStateValid) {
   }
 }
 
+TEST(ScenarioRulesTest, FingerprintTellsMapsAndRulesApart) {
+  const uint64_t base = Make("twin_buttons", "X12X\n")->fingerprint();
+  EXPECT_EQ(Make("twin_buttons", "X12X\n")->fingerprint(), base);
+  EXPECT_NE(Make("twin_buttons", "X12.X\n")->fingerprint(), base);
+  EXPECT_NE(Make("twin_buttons", "X12X\n", 50)->fingerprint(), base);
+  ScenarioConfig rewards;
+  rewards.success_reward = 10;
+  EXPECT_NE(Make("twin_buttons", "X12X\n", 0, rewards)->fingerprint(), base);
+  EXPECT_NE(Make("coop_nav", "T12X\n")->fingerprint(), Make("twin_buttons", "T12X\n")->fingerprint());
+}
+
 TEST(ScenarioRulesTest, MapsLackingWhatTheRulesNeedAreRejected) {
   auto map = GridMap::Parse("1..2\n", "bare.txt");
   ASSERT_TRUE(map.ok());

@@ -20,6 +20,7 @@ v1::Unroll RandomUnroll(const env::Scenario& scenario, int length, int num_envs,
   u.set_num_agents(n);
   u.set_num_actions(a_count);
   u.set_state_size(k);
+  u.set_scenario_fingerprint(scenario.fingerprint());
   std::vector<int32_t> actions(num_envs * n), reached(num_envs * k);
   std::vector<float> rewards(num_envs * n);
   std::vector<char> terminated(num_envs), truncated(num_envs);

@@ -59,6 +59,11 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
     return absl::InvalidArgumentError(absl::StrCat("unroll.state_size ", u.state_size(),
                                                    " != ", scenario.state_size()));
   }
+  if (u.scenario_fingerprint() != 0 && u.scenario_fingerprint() != scenario.fingerprint()) {
+    return absl::InvalidArgumentError(
+        "unroll.scenario_fingerprint differs from this server's: the sender plays another map or other rules "
+        "(check --map, --num_agents, --step_limit, --view_radius and the rewards)");
+  }
   if (u.length() < 1) return absl::InvalidArgumentError("unroll.length must be >= 1");
   if (u.num_envs() < 1) return absl::InvalidArgumentError("unroll.num_envs must be >= 1");
   const int64_t transitions = int64_t{u.length()} * u.num_envs();

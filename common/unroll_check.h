@@ -17,7 +17,7 @@ struct UnrollNeeds {
 inline constexpr int kMaxTransitions = 65536;
 
 // Checks an Unroll against the scenario it claims to come from: scenario name,
-// agent/action counts and state size; T, E >= 1 and T*E <= kMaxTransitions;
+// fingerprint (unless 0), agent/action counts and state size; T, E >= 1 and T*E <= kMaxTransitions;
 // every packed field's length; actions in [0, A); every state a valid state of
 // the scenario; action_probs finite, in [0,1] and each row summing to 1 within
 // 1e-3. Returns INVALID_ARGUMENT whose message names the field and element

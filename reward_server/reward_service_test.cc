@@ -101,6 +101,8 @@ struct BadCase {
 TEST_F(RewardServiceTest, EveryBadFieldIsInvalidArgumentAndChangesNothing) {
   const BadCase cases[] = {
       {"scenario", [](v1::Unroll* u) { u->set_scenario("chess"); }, "unroll.scenario"},
+      {"other map", [](v1::Unroll* u) { u->set_scenario_fingerprint(u->scenario_fingerprint() ^ 1); },
+       "unroll.scenario_fingerprint"},
       {"agents", [](v1::Unroll* u) { u->set_num_agents(3); }, "unroll.num_agents"},
       {"actions count", [](v1::Unroll* u) { u->set_num_actions(4); }, "unroll.num_actions"},
       {"state size", [](v1::Unroll* u) { u->set_state_size(5); }, "unroll.state_size"},
