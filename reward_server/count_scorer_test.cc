@@ -48,7 +48,7 @@ class CountScorerTest : public ::testing::Test {
     r.contributions.resize(size * kN);
     r.shares.resize(size * kN);
     r.agent_rewards.resize(size * kN);
-    TransitionBatch batch{size, states.data(), states.data(), flat_actions.data(), flat_probs.data(),
+    TransitionBatch batch{size, size, 1, 4, states.data(), states.data(), flat_actions.data(), flat_probs.data(),
                           episode_ids.data()};
     EXPECT_TRUE(scorer.Score(batch, dry_run,
                              {r.global.data(), r.contributions.data(), r.shares.data(),

@@ -12,11 +12,15 @@
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
 #include "reward_server/count_scorer.h"
+#include "reward_server/rnd_scorer.h"
 #include "reward_server/reward_service.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
-ABSL_FLAG(std::string, reward, "count", "global reward kind: count");
+ABSL_FLAG(std::string, reward, "count", "global reward kind: count|rnd");
+ABSL_FLAG(double, rnd_lr, 1e-3, "rnd: Adam learning rate of the predictor");
+ABSL_FLAG(double, rnd_update_proportion, 1.0, "rnd: share of each request's transitions the predictor trains on");
+ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads (rnd)");
 ABSL_FLAG(std::string, credit, "imca", "credit mode: none|independent|shared|imca");
 ABSL_FLAG(std::string, permutation, "off", "permutation mode: off|random|canonical");
 ABSL_FLAG(double, beta, 1.0, "coefficient of the global intrinsic reward");
@@ -55,20 +59,30 @@ int main(int argc, char** argv) {
   if (!(config.beta >= 0)) return Fail("--beta must be >= 0");
   if (!(config.temperature > 0)) return Fail("--temperature must be > 0");
   const std::string kind = absl::GetFlag(FLAGS_reward);
-  if (kind != "count") {
-    return Fail(absl::StrCat("--reward '", kind, "' is not available (this build has: count)"));
+  std::unique_ptr<reward::Scorer> scorer;
+  if (kind == "count") {
+    scorer = std::make_unique<reward::CountScorer>(**scenario, config);
+  } else if (kind == "rnd") {
+    reward::RndConfig rnd;
+    rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
+    rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
+    rnd.threads = absl::GetFlag(FLAGS_threads);
+    auto created = reward::RndScorer::Create(**scenario, config, rnd);
+    if (!created.ok()) return Fail(absl::StrCat("--rnd_*: ", created.status().message()));
+    scorer = *std::move(created);
+  } else {
+    return Fail(absl::StrCat("--reward '", kind, "' is not one of count|rnd"));
   }
-  reward::CountScorer scorer(**scenario, config);
 
   const std::string snapshot = absl::GetFlag(FLAGS_snapshot);
   if (!snapshot.empty() && std::ifstream(snapshot).good()) {
-    if (absl::Status loaded = scorer.Load(snapshot); !loaded.ok()) {
+    if (absl::Status loaded = scorer->Load(snapshot); !loaded.ok()) {
       return Fail(absl::StrCat("--snapshot: ", loaded.message()));
     }
     std::fprintf(stderr, "reward_server: resumed from %s\n", snapshot.c_str());
   }
 
-  reward::RewardServiceImpl service(scenario->get(), &scorer, kind, config, snapshot);
+  reward::RewardServiceImpl service(scenario->get(), scorer.get(), kind, config, snapshot);
   InstallShutdownSignalHandlers();
   int port = 0;
   auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port);
@@ -86,7 +100,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     if (!snapshot.empty() && period.count() > 0 &&
         std::chrono::steady_clock::now() - last_snapshot > period) {
-      if (absl::Status saved = scorer.Save(snapshot); !saved.ok()) {
+      if (absl::Status saved = scorer->Save(snapshot); !saved.ok()) {
         std::fprintf(stderr, "reward_server: snapshot failed: %s\n", std::string(saved.message()).c_str());
       }
       last_snapshot = std::chrono::steady_clock::now();
@@ -95,7 +109,7 @@ int main(int argc, char** argv) {
   service.StopAccepting();
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(5)));
   if (!snapshot.empty()) {
-    if (absl::Status saved = scorer.Save(snapshot); !saved.ok()) {
+    if (absl::Status saved = scorer->Save(snapshot); !saved.ok()) {
       return Fail(absl::StrCat("final snapshot failed: ", saved.message()));
     }
   }

@@ -39,6 +39,9 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
   response->mutable_agent_rewards()->Resize(count * n, 0.0f);
   TransitionBatch batch;
   batch.size = count;
+  batch.length = unroll.length();
+  batch.num_envs = unroll.num_envs();
+  batch.state_size = unroll.state_size();
   batch.states = unroll.states().data();
   batch.next_states = unroll.next_states().data();
   batch.actions = unroll.actions().data();

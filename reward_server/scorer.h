@@ -12,7 +12,10 @@ namespace imca::reward {
 // A read-only view of N transitions, already validated against the scenario
 // (see common/unroll_check.h). Row-major arrays.
 struct TransitionBatch {
-  int64_t size = 0;                     // N
+  int64_t size = 0;                     // N = length * num_envs, time-major [t][e]
+  int64_t length = 0;                   // T
+  int64_t num_envs = 0;                 // E
+  int64_t state_size = 0;               // K, ints per state
   const int32_t* states = nullptr;      // [N][K], S_t
   const int32_t* next_states = nullptr; // [N][K], S_{t+1} (the reached state)
   const int32_t* actions = nullptr;     // [N][n]

@@ -211,6 +211,36 @@ TEST_P(ScenarioPipelineTest, TrainsToTheBudgetAndStops) {
 INSTANTIATE_TEST_SUITE_P(AllScenarios, ScenarioPipelineTest, ::testing::ValuesIn(env::ScenarioNames()),
                          [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
 
+TEST(IntegrationTest, RndRewardServerCreditsLearnedNovelty) {
+  const std::string dir = TempDir("rnd");
+  Subprocess server({kBin + "/reward_server", "--listen=127.0.0.1:0", "--port_file=" + dir + "/reward.port",
+                     "--scenario=predator_prey", "--reward=rnd", "--credit=imca",
+                     "--snapshot=" + dir + "/snapshot.pt"},
+                    dir + "/reward_server.log");
+  ASSERT_TRUE(server.Start());
+  const int port = WaitForPortFile(dir + "/reward.port", server, std::chrono::seconds(30));
+  ASSERT_GT(port, 0) << server.Log();
+  env::ScenarioConfig config;
+  config.name = "predator_prey";
+  auto scenario = env::MakeScenario(config, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok());
+  const v1::ScoreResponse r = DryRunScore(port, **scenario);
+  ASSERT_EQ(r.num_agents(), 4);
+  for (int i = 0; i < r.num_transitions(); ++i) {
+    float sum = 0, shares = 0;
+    for (int a = 0; a < 4; ++a) {
+      sum += r.agent_rewards(4 * i + a);
+      shares += r.shares(4 * i + a);
+    }
+    EXPECT_GT(r.global_rewards(i), 0.0f);
+    EXPECT_NEAR(sum, r.global_rewards(i), 1e-4 * r.global_rewards(i) + 1e-6);
+    EXPECT_NEAR(shares, 1.0f, 1e-5);
+  }
+  server.Signal(SIGTERM);
+  EXPECT_EQ(server.Wait(std::chrono::seconds(30)), 0) << server.Log();
+  EXPECT_TRUE(fs::exists(dir + "/snapshot.pt"));
+}
+
 TEST(IntegrationTest, PortInUseIsAOneLineError) {
   const std::string dir = TempDir("port");
   int port = 0;

@@ -1,0 +1,425 @@
+#include "reward_server/rnd_scorer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/strings/str_cat.h"
+#include "absl/synchronization/mutex.h"
+#include "common/rng.h"
+#include "reward_server/joint_input.h"
+#include "reward_server/joint_key.h"
+#include "reward_server/torch_mlp.h"
+
+namespace imca::reward {
+namespace {
+
+constexpr char kMagic[] = "IMCA-RND-1";
+constexpr double kEps = 1e-8;
+
+std::vector<int64_t> Sizes(int64_t in, const RndConfig& config) {
+  std::vector<int64_t> sizes = {in};
+  for (int h : config.hidden) sizes.push_back(h);
+  sizes.push_back(config.output);
+  return sizes;
+}
+
+// One RND pair with its normalisers and the predictor's optimiser.
+struct Model {
+  Model(int64_t in, const RndConfig& config)
+      : target(Sizes(in, config)), predictor(Sizes(in, config)), obs(in), ret(1), normalize(config.normalize) {
+    for (auto& p : target->parameters()) p.set_requires_grad(false);
+    optimizer = std::make_unique<torch::optim::Adam>(
+        predictor->parameters(), torch::optim::AdamOptions(config.learning_rate));
+  }
+
+  torch::Tensor Normalize(const torch::Tensor& x) const {
+    if (!normalize) return x;
+    return ((x - obs.mean.to(torch::kFloat32)) / torch::sqrt(obs.var.to(torch::kFloat32) + kEps)).clamp(-5.0, 5.0);
+  }
+
+  // Raw novelty of each normalised row.
+  torch::Tensor Novelty(const torch::Tensor& x) {
+    torch::NoGradGuard no_grad;
+    return (target->forward(x) - predictor->forward(x)).pow(2).mean(1);
+  }
+
+  double RewardStd() const { return normalize ? std::sqrt(ret.var.item<double>() + kEps) : 1.0; }
+
+  void Train(const torch::Tensor& x) {
+    optimizer->zero_grad();
+    torch::Tensor loss;
+    {
+      torch::Tensor goal;
+      {
+        torch::NoGradGuard no_grad;
+        goal = target->forward(x);
+      }
+      loss = (predictor->forward(x) - goal).pow(2).mean();
+    }
+    loss.backward();
+    optimizer->step();
+  }
+
+  void Write(torch::serialize::OutputArchive& archive, const std::string& prefix) const {
+    torch::serialize::OutputArchive t, p, o;
+    target->save(t);
+    predictor->save(p);
+    optimizer->save(o);
+    archive.write(prefix + "target", t);
+    archive.write(prefix + "predictor", p);
+    archive.write(prefix + "optimizer", o);
+    archive.write(prefix + "obs_mean", obs.mean);
+    archive.write(prefix + "obs_var", obs.var);
+    archive.write(prefix + "obs_count", torch::tensor(obs.count, torch::kFloat64));
+    archive.write(prefix + "ret_mean", ret.mean);
+    archive.write(prefix + "ret_var", ret.var);
+    archive.write(prefix + "ret_count", torch::tensor(ret.count, torch::kFloat64));
+  }
+
+  void Read(torch::serialize::InputArchive& archive, const std::string& prefix) {
+    torch::serialize::InputArchive t, p, o;
+    archive.read(prefix + "target", t);
+    archive.read(prefix + "predictor", p);
+    archive.read(prefix + "optimizer", o);
+    target->load(t);
+    predictor->load(p);
+    optimizer->load(o);
+    torch::Tensor count;
+    archive.read(prefix + "obs_mean", obs.mean);
+    archive.read(prefix + "obs_var", obs.var);
+    archive.read(prefix + "obs_count", count);
+    obs.count = count.item<double>();
+    archive.read(prefix + "ret_mean", ret.mean);
+    archive.read(prefix + "ret_var", ret.var);
+    archive.read(prefix + "ret_count", count);
+    ret.count = count.item<double>();
+  }
+
+  Mlp target;
+  Mlp predictor;
+  std::unique_ptr<torch::optim::Adam> optimizer;
+  RunningMoments obs;
+  RunningMoments ret;
+  bool normalize;
+};
+
+// Discounted returns of novelties [T][E][k] along t, per (e, k) stream.
+torch::Tensor StreamReturns(const torch::Tensor& novelty, int64_t T, int64_t E, int64_t k, double gamma) {
+  auto n = novelty.reshape({T, E * k}).to(torch::kFloat64);
+  std::vector<torch::Tensor> out;
+  torch::Tensor running = torch::zeros({E * k}, torch::kFloat64);
+  for (int64_t t = 0; t < T; ++t) {
+    running = running * gamma + n[t];
+    out.push_back(running);
+  }
+  return torch::stack(out).reshape({T * E * k, 1});
+}
+
+}  // namespace
+
+struct RndScorer::Impl {
+  Impl(const env::Scenario& scenario, const ScorerConfig& config, const RndConfig& rnd)
+      : n(scenario.num_agents()),
+        num_actions(scenario.num_actions()),
+        config(config),
+        rnd(rnd),
+        encoder(scenario),
+        codec(scenario),
+        tag(absl::StrCat(kMagic, " ", scenario.name(), " ", scenario.map().width(), "x",
+                         scenario.map().height(), " n=", n, " A=", num_actions, " credit=",
+                         CreditName(config.credit), " permutation=", PermutationName(config.permutation))),
+        rng(config.seed) {
+    if (config.credit == Credit::kIndependent) {
+      local.emplace(encoder.local_dim(config.permutation == Permutation::kOff), rnd);
+    } else if (config.credit != Credit::kNone) {
+      joint.emplace(encoder.joint_dim(), rnd);
+    }
+  }
+
+  void Order(const int32_t* state, int* order) const {
+    if (config.permutation == Permutation::kCanonical) {
+      codec.CanonicalOrder(state, order);
+    } else {
+      for (int a = 0; a < n; ++a) order[a] = a;
+    }
+  }
+
+  void ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void TrainJoint(const TransitionBatch& batch, const torch::Tensor& inputs) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+
+  const int n;
+  const int num_actions;
+  const ScorerConfig config;
+  const RndConfig rnd;
+  const JointInputEncoder encoder;
+  const JointKeyCodec codec;
+  const std::string tag;
+
+  mutable absl::Mutex mu;
+  Rng rng ABSL_GUARDED_BY(mu);
+  std::optional<Model> joint ABSL_GUARDED_BY(mu);
+  std::optional<Model> local ABSL_GUARDED_BY(mu);
+  int64_t updates ABSL_GUARDED_BY(mu) = 0;
+};
+
+void RndScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  const int64_t N = batch.size, D = encoder.joint_dim();
+  const bool imca = config.credit == Credit::kImca;
+  const int64_t rows = imca ? N * (1 + n * num_actions) : N;
+  torch::Tensor inputs = torch::empty({rows, D}, torch::kFloat32);
+  float* x = inputs.data_ptr<float>();
+  std::vector<int> orders(N * n);
+  const int64_t stride = batch.state_size;
+  for (int64_t i = 0; i < N; ++i) {
+    const int32_t* state = batch.states + i * stride;
+    int* order = &orders[i * n];
+    Order(state, order);
+    encoder.EncodeJoint(state, batch.actions + i * n, order, x + i * D);
+  }
+  if (imca) {
+    // Counterfactual rows: transition i, agent a, action u at N + (i*n + a)*A + u.
+    for (int64_t i = 0; i < N; ++i) {
+      const int* order = &orders[i * n];
+      for (int slot = 0; slot < n; ++slot) {
+        const int a = order[slot];
+        for (int u = 0; u < num_actions; ++u) {
+          float* row = x + (N + (i * n + a) * num_actions + u) * D;
+          std::copy(x + i * D, x + (i + 1) * D, row);
+          float* action_block = row + encoder.state_dim() + slot * num_actions;
+          std::fill(action_block, action_block + num_actions, 0.0f);
+          action_block[u] = 1.0f;
+        }
+      }
+    }
+  }
+  Model& model = *joint;
+  const torch::Tensor taken = inputs.narrow(0, 0, N);
+  if (!dry_run && model.normalize) model.obs.Update(taken);
+  const torch::Tensor novelty = model.Novelty(model.Normalize(inputs));
+  if (!dry_run && model.normalize) {
+    model.ret.Update(StreamReturns(novelty.narrow(0, 0, N), batch.length, batch.num_envs, 1, rnd.gamma));
+  }
+  const torch::Tensor scaled = (novelty / model.RewardStd()).contiguous();
+  const float* nov = scaled.data_ptr<float>();
+  const float beta = static_cast<float>(config.beta);
+  for (int64_t i = 0; i < N; ++i) {
+    out.global_rewards[i] = beta * nov[i];
+    float* contributions = out.contributions + i * n;
+    float* shares = out.shares + i * n;
+    float* rewards = out.agent_rewards + i * n;
+    if (!imca) {
+      for (int a = 0; a < n; ++a) {
+        contributions[a] = 0;
+        shares[a] = 1.0f / n;
+        rewards[a] = out.global_rewards[i];
+      }
+      continue;
+    }
+    for (int a = 0; a < n; ++a) {
+      double baseline = 0;
+      const float* probs = batch.action_probs + (i * n + a) * num_actions;
+      for (int u = 0; u < num_actions; ++u) baseline += probs[u] * nov[N + (i * n + a) * num_actions + u];
+      contributions[a] = static_cast<float>(nov[i] - baseline);
+    }
+    SoftmaxShares(contributions, n, config.temperature, shares);
+    for (int a = 0; a < n; ++a) rewards[a] = shares[a] * out.global_rewards[i];
+  }
+  if (!dry_run) TrainJoint(batch, taken);
+}
+
+void RndScorer::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {
+  Model& model = *joint;
+  const int64_t N = batch.size, D = encoder.joint_dim();
+  torch::Tensor train = taken;
+  if (config.permutation == Permutation::kRandom) {
+    // The paper's 4.3: learn the pair under a random permutation of the agents.
+    train = torch::empty({N, D}, torch::kFloat32);
+    float* x = train.data_ptr<float>();
+    int order[env::kMaxAgents];
+    for (int64_t i = 0; i < N; ++i) {
+      for (int a = 0; a < n; ++a) order[a] = a;
+      for (int slot = n - 1; slot > 0; --slot) std::swap(order[slot], order[rng.Uniform(slot + 1)]);
+      encoder.EncodeJoint(batch.states + i * batch.state_size, batch.actions + i * n, order, x + i * D);
+    }
+  }
+  const int64_t keep = std::max<int64_t>(1, static_cast<int64_t>(std::lround(rnd.update_proportion * N)));
+  if (keep < N) {
+    std::vector<int64_t> idx(N);
+    for (int64_t i = 0; i < N; ++i) idx[i] = i;
+    for (int64_t i = 0; i < keep; ++i) std::swap(idx[i], idx[i + rng.Uniform(static_cast<uint32_t>(N - i))]);
+    idx.resize(keep);
+    train = train.index_select(0, torch::tensor(idx, torch::kInt64));
+  }
+  model.Train(model.Normalize(train));
+  ++updates;
+}
+
+void RndScorer::Impl::ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  const bool with_id = config.permutation == Permutation::kOff;
+  const int64_t N = batch.size, D = encoder.local_dim(with_id);
+  torch::Tensor inputs = torch::empty({N * n, D}, torch::kFloat32);
+  float* x = inputs.data_ptr<float>();
+  for (int64_t i = 0; i < N; ++i) {
+    for (int a = 0; a < n; ++a) {
+      encoder.EncodeLocal(batch.states + i * batch.state_size, a, batch.actions[i * n + a], with_id,
+                          x + (i * n + a) * D);
+    }
+  }
+  Model& model = *local;
+  if (!dry_run && model.normalize) model.obs.Update(inputs);
+  const torch::Tensor novelty = model.Novelty(model.Normalize(inputs));
+  if (!dry_run && model.normalize) {
+    model.ret.Update(StreamReturns(novelty, batch.length, batch.num_envs, n, rnd.gamma));
+  }
+  const torch::Tensor scaled = (novelty / model.RewardStd()).contiguous();
+  const float* nov = scaled.data_ptr<float>();
+  const float beta = static_cast<float>(config.beta);
+  for (int64_t i = 0; i < N; ++i) {
+    float total = 0;
+    for (int a = 0; a < n; ++a) {
+      out.contributions[i * n + a] = nov[i * n + a];
+      out.agent_rewards[i * n + a] = beta * nov[i * n + a];
+      total += out.agent_rewards[i * n + a];
+    }
+    out.global_rewards[i] = total;
+    for (int a = 0; a < n; ++a) out.shares[i * n + a] = total > 0 ? out.agent_rewards[i * n + a] / total : 1.0f / n;
+  }
+  if (!dry_run) {
+    model.Train(model.Normalize(inputs));
+    ++updates;
+  }
+}
+
+absl::StatusOr<std::unique_ptr<RndScorer>> RndScorer::Create(const env::Scenario& scenario,
+                                                             const ScorerConfig& config, const RndConfig& rnd) {
+  if (rnd.output < 1) return absl::InvalidArgumentError("rnd output size must be >= 1");
+  for (int h : rnd.hidden) {
+    if (h < 1) return absl::InvalidArgumentError("rnd hidden sizes must be >= 1");
+  }
+  if (!(rnd.learning_rate > 0)) return absl::InvalidArgumentError("rnd learning rate must be > 0");
+  if (!(rnd.update_proportion > 0 && rnd.update_proportion <= 1)) {
+    return absl::InvalidArgumentError("rnd update proportion must be in (0, 1]");
+  }
+  if (!(rnd.gamma >= 0 && rnd.gamma < 1)) return absl::InvalidArgumentError("rnd gamma must be in [0, 1)");
+  torch::set_num_threads(std::max(1, rnd.threads));
+  torch::manual_seed(config.seed);
+  return std::unique_ptr<RndScorer>(new RndScorer(std::make_unique<Impl>(scenario, config, rnd)));
+}
+
+RndScorer::RndScorer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+RndScorer::~RndScorer() = default;
+
+absl::Status RndScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  const int n = impl_->n;
+  if (impl_->config.credit == Credit::kNone) {
+    for (int64_t i = 0; i < batch.size; ++i) {
+      out.global_rewards[i] = 0;
+      for (int a = 0; a < n; ++a) {
+        out.contributions[i * n + a] = out.agent_rewards[i * n + a] = 0;
+        out.shares[i * n + a] = 1.0f / n;
+      }
+    }
+    return absl::OkStatus();
+  }
+  absl::MutexLock lock(&impl_->mu);
+  try {
+    if (impl_->config.credit == Credit::kIndependent) {
+      impl_->ScoreLocal(batch, dry_run, out);
+    } else {
+      impl_->ScoreJoint(batch, dry_run, out);
+    }
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("rnd: ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+void RndScorer::FillStats(v1::RewardStats* stats) const {
+  absl::MutexLock lock(&impl_->mu);
+  stats->set_model_updates(impl_->updates);
+}
+
+absl::Status RndScorer::Save(const std::string& path) const {
+  absl::MutexLock lock(&impl_->mu);
+  try {
+    torch::serialize::OutputArchive archive;
+    archive.write("tag", c10::IValue(impl_->tag));
+    if (impl_->joint) impl_->joint->Write(archive, "joint.");
+    if (impl_->local) impl_->local->Write(archive, "local.");
+    archive.write("updates", torch::tensor(impl_->updates, torch::kInt64));
+    const std::string tmp = path + ".tmp";
+    archive.save_to(tmp);
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+      return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
+    }
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status RndScorer::Load(const std::string& path) {
+  absl::MutexLock lock(&impl_->mu);
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const std::exception& e) {
+    return absl::NotFoundError(absl::StrCat("no readable snapshot at '", path, "'"));
+  }
+  try {
+    c10::IValue tag;
+    archive.read("tag", tag);
+    if (!tag.isString() || tag.toStringRef() != impl_->tag) {
+      return absl::FailedPreconditionError(absl::StrCat("snapshot '", path, "' was written by '",
+                                                        tag.isString() ? tag.toStringRef() : "?",
+                                                        "', not by this configuration"));
+    }
+    // Read into fresh models; swap them in only when everything was read.
+    std::optional<Model> joint, local;
+    if (impl_->joint) {
+      joint.emplace(impl_->encoder.joint_dim(), impl_->rnd);
+      joint->Read(archive, "joint.");
+    }
+    if (impl_->local) {
+      local.emplace(impl_->encoder.local_dim(impl_->config.permutation == Permutation::kOff), impl_->rnd);
+      local->Read(archive, "local.");
+    }
+    torch::Tensor updates;
+    archive.read("updates", updates);
+    impl_->joint.swap(joint);
+    impl_->local.swap(local);
+    impl_->updates = updates.item<int64_t>();
+  } catch (const std::exception& e) {
+    return absl::DataLossError(absl::StrCat("snapshot '", path, "': ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status RndScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
+                                         const std::vector<float>& bias) {
+  absl::MutexLock lock(&impl_->mu);
+  std::optional<Model>& model = net.rfind("local_", 0) == 0 ? impl_->local : impl_->joint;
+  if (!model) return absl::InvalidArgumentError(absl::StrCat("no model for '", net, "' in this credit mode"));
+  const std::string which = net.rfind("local_", 0) == 0 ? net.substr(6) : net;
+  if (which != "target" && which != "predictor") return absl::InvalidArgumentError("net is target or predictor");
+  Mlp& mlp = which == "target" ? model->target : model->predictor;
+  if (layer < 0 || layer >= static_cast<int>(mlp->layers().size())) return absl::InvalidArgumentError("bad layer");
+  torch::nn::Linear& linear = mlp->layers()[layer];
+  if (static_cast<int64_t>(weight.size()) != linear->weight.numel() ||
+      static_cast<int64_t>(bias.size()) != linear->bias.numel()) {
+    return absl::InvalidArgumentError(absl::StrCat("layer ", layer, " is ", linear->weight.size(0), "x",
+                                                   linear->weight.size(1)));
+  }
+  torch::NoGradGuard no_grad;
+  linear->weight.copy_(torch::tensor(weight).reshape(linear->weight.sizes()));
+  linear->bias.copy_(torch::tensor(bias));
+  return absl::OkStatus();
+}
+
+}  // namespace imca::reward

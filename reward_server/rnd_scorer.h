@@ -1,0 +1,66 @@
+#ifndef IMCA_REWARD_SERVER_RND_SCORER_H_
+#define IMCA_REWARD_SERVER_RND_SCORER_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "common/env.h"
+#include "reward_server/credit.h"
+#include "reward_server/scorer.h"
+
+namespace imca::reward {
+
+struct RndConfig {
+  std::vector<int> hidden = {128, 128};  // Hidden widths of target and predictor; {} = one linear layer.
+  int output = 64;                       // Embedding size.
+  double learning_rate = 1e-3;           // Adam, predictor only.
+  double update_proportion = 1.0;        // Share of each batch's transitions the predictor trains on.
+  double gamma = 0.99;                   // Discount of the intrinsic return whose running std divides N.
+  bool normalize = true;                 // Input mean/std (clip +-5) and bonus normalisation.
+  int threads = 1;                       // LibTorch intra-op threads.
+};
+
+// Random network distillation (paper eq. 6, SPEC 4.2) on the encoded joint
+// state + one-hot joint action (JointInputEncoder), with the credit modes of
+// SPEC 5 (docs/credit.md):
+//   N(x) = mean((f(x') - f^(x'))^2), x' = clip((x - mean) / std, -5, 5),
+//   then divided by the running std of the discounted intrinsic return
+//   (per env stream of each request, gamma), so that tau means the same as
+//   for counts. imca: r^a = N(S,U) - sum_u' pi^a(u') N(S,(U^-a,u')) with all
+//   n*|A| counterfactual inputs of a batch in one forward pass; independent: a
+//   second RND over each agent's local (cell, action[, id]).
+// A request is scored with the predictor as it was before the request, then
+// the predictor takes one Adam step on the request's (S,U) inputs (a random
+// `update_proportion` of them; under permutation random, on a random slot
+// order of each). Thread-safe: one mutex serialises requests.
+class RndScorer final : public Scorer {
+ public:
+  // Errors: INVALID_ARGUMENT for bad config values.
+  static absl::StatusOr<std::unique_ptr<RndScorer>> Create(const env::Scenario& scenario,
+                                                           const ScorerConfig& config,
+                                                           const RndConfig& rnd);
+  ~RndScorer() override;
+
+  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  void FillStats(v1::RewardStats* stats) const override;
+  absl::Status Save(const std::string& path) const override;
+  absl::Status Load(const std::string& path) override;
+
+  // Tests: sets layer `layer` of net "target" or "predictor" (the joint
+  // model; "local_target"/"local_predictor" for independent credit) to the
+  // row-major weight [out][in] and bias [out]. INVALID_ARGUMENT on a shape
+  // mismatch or unknown name.
+  absl::Status SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
+                                const std::vector<float>& bias);
+
+ private:
+  struct Impl;
+  explicit RndScorer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_RND_SCORER_H_
