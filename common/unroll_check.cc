@@ -114,6 +114,7 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
       }
     }
   }
+  if (u.terminated_size() != 0) IMCA_RETURN_IF_ERROR(CheckSize(u.terminated(), "terminated", transitions));
   IMCA_RETURN_IF_ERROR(CheckFinite(u.episode_returns(), "episode_returns"));
   IMCA_RETURN_IF_ERROR(CheckFinite(u.eval_returns(), "eval_returns"));
   if (u.actor_id().size() > 256) return absl::InvalidArgumentError("unroll.actor_id is longer than 256 bytes");

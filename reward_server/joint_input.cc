@@ -44,3 +44,15 @@ void JointInputEncoder::EncodeLocal(const int32_t* state, int agent, int32_t act
 }
 
 }  // namespace imca::reward
+
+namespace imca::reward {
+
+void JointInputEncoder::EncodeLocalState(const int32_t* state, int agent, bool with_agent_id, float* out) const {
+  std::fill(out, out + local_state_dim(with_agent_id), 0.0f);
+  const int32_t cell = state[env::AgentIndex(agent)];
+  out[cell / width_] = 1.0f;
+  out[height_ + cell % width_] = 1.0f;
+  if (with_agent_id) out[block_ + agent] = 1.0f;
+}
+
+}  // namespace imca::reward

@@ -32,6 +32,9 @@ class JointInputEncoder {
   void EncodeState(const int32_t* state, const int* order, float* out) const;
   // Writes joint_dim floats: EncodeState, then the actions in slot order.
   void EncodeJoint(const int32_t* state, const int32_t* actions, const int* order, float* out) const;
+  int local_state_dim(bool with_agent_id) const { return block_ + (with_agent_id ? n_ : 0); }
+  // Writes local_state_dim floats: agent `agent`'s [row | col] one-hot (+ id).
+  void EncodeLocalState(const int32_t* state, int agent, bool with_agent_id, float* out) const;
   // Writes local_dim(with_agent_id) floats for agent `agent` taking `action`.
   void EncodeLocal(const int32_t* state, int agent, int32_t action, bool with_agent_id, float* out) const;
 

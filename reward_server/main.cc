@@ -13,14 +13,17 @@
 #include "common/scenario_flags.h"
 #include "reward_server/count_scorer.h"
 #include "reward_server/rnd_scorer.h"
+#include "reward_server/sf_scorer.h"
 #include "reward_server/reward_service.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
-ABSL_FLAG(std::string, reward, "count", "global reward kind: count|rnd");
+ABSL_FLAG(std::string, reward, "count", "global reward kind: count|rnd|sf");
+ABSL_FLAG(double, sf_gamma, 0.95, "sf: successor-feature discount");
+ABSL_FLAG(double, sf_lr, 1e-3, "sf: Adam learning rate of psi");
 ABSL_FLAG(double, rnd_lr, 1e-3, "rnd: Adam learning rate of the predictor");
 ABSL_FLAG(double, rnd_update_proportion, 1.0, "rnd: share of each request's transitions the predictor trains on");
-ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads (rnd)");
+ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads (rnd, sf)");
 ABSL_FLAG(std::string, credit, "imca", "credit mode: none|independent|shared|imca");
 ABSL_FLAG(std::string, permutation, "off", "permutation mode: off|random|canonical");
 ABSL_FLAG(double, beta, 1.0, "coefficient of the global intrinsic reward");
@@ -70,8 +73,16 @@ int main(int argc, char** argv) {
     auto created = reward::RndScorer::Create(**scenario, config, rnd);
     if (!created.ok()) return Fail(absl::StrCat("--rnd_*: ", created.status().message()));
     scorer = *std::move(created);
+  } else if (kind == "sf") {
+    reward::SfConfig sf;
+    sf.gamma = absl::GetFlag(FLAGS_sf_gamma);
+    sf.learning_rate = absl::GetFlag(FLAGS_sf_lr);
+    sf.threads = absl::GetFlag(FLAGS_threads);
+    auto created = reward::SfScorer::Create(**scenario, config, sf);
+    if (!created.ok()) return Fail(absl::StrCat("--sf_*: ", created.status().message()));
+    scorer = *std::move(created);
   } else {
-    return Fail(absl::StrCat("--reward '", kind, "' is not one of count|rnd"));
+    return Fail(absl::StrCat("--reward '", kind, "' is not one of count|rnd|sf"));
   }
 
   const std::string snapshot = absl::GetFlag(FLAGS_snapshot);

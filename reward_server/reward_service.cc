@@ -2,6 +2,8 @@
 
 #include <sys/stat.h>
 
+#include <functional>
+
 #include "absl/strings/str_cat.h"
 #include "common/grpc_util.h"
 #include "common/unroll_check.h"
@@ -47,6 +49,8 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
   batch.actions = unroll.actions().data();
   batch.action_probs = unroll.action_probs().data();
   batch.episode_ids = unroll.episode_ids().data();
+  if (unroll.terminated_size() == count) batch.terminated = unroll.terminated().data();
+  batch.actor = std::hash<std::string>()(unroll.actor_id());
   ScoreOutput out;
   out.global_rewards = response->mutable_global_rewards()->mutable_data();
   out.contributions = response->mutable_contributions()->mutable_data();

@@ -21,6 +21,8 @@ struct TransitionBatch {
   const int32_t* actions = nullptr;     // [N][n]
   const float* action_probs = nullptr;  // [N][n][A], behaviour pi^a(.|o^a)
   const int64_t* episode_ids = nullptr; // [N]
+  const bool* terminated = nullptr;     // [N] or null (unknown: no episode ended)
+  uint64_t actor = 0;                   // Hash of the sending actor's id (episode ids are per actor).
 };
 
 // Where a scorer writes its results; every array is preallocated by the caller.

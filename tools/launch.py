@@ -19,7 +19,7 @@ import time
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 SCENARIOS = ["coop_nav", "predator_prey", "multi_room", "twin_buttons", "pass", "secret_room"]
-REWARDS = ["count", "rnd"]
+REWARDS = ["count", "rnd", "sf"]
 CREDITS = ["none", "independent", "shared", "imca"]
 PERMUTATIONS = ["off", "random", "canonical"]
 

@@ -1,0 +1,414 @@
+#include "reward_server/sf_scorer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/container/flat_hash_map.h"
+#include "absl/strings/str_cat.h"
+#include "absl/synchronization/mutex.h"
+#include "common/rng.h"
+#include "reward_server/joint_input.h"
+#include "reward_server/torch_mlp.h"
+
+namespace imca::reward {
+namespace {
+
+constexpr char kMagic[] = "IMCA-SF-1";
+// Episodic visit counts are kept for two generations of this many requests.
+constexpr int64_t kGenerationRequests = 2000;
+
+std::vector<int64_t> Sizes(int64_t in, const SfConfig& config) {
+  std::vector<int64_t> sizes = {in};
+  for (int h : config.hidden) sizes.push_back(h);
+  sizes.push_back(config.features);
+  return sizes;
+}
+
+// phi (fixed), psi (trained) and psi's target copy.
+struct SfModel {
+  SfModel(int64_t in, const SfConfig& config)
+      : phi(Sizes(in, config)), psi(Sizes(in, config)), psi_target(Sizes(in, config)) {
+    for (auto& p : phi->parameters()) p.set_requires_grad(false);
+    for (auto& p : psi_target->parameters()) p.set_requires_grad(false);
+    SyncTarget();
+    optimizer = std::make_unique<torch::optim::Adam>(psi->parameters(),
+                                                     torch::optim::AdamOptions(config.learning_rate));
+  }
+
+  void SyncTarget() {
+    torch::NoGradGuard no_grad;
+    auto from = psi->parameters();
+    auto to = psi_target->parameters();
+    for (size_t i = 0; i < from.size(); ++i) to[i].copy_(from[i]);
+  }
+
+  torch::Tensor Psi(const torch::Tensor& x) {
+    torch::NoGradGuard no_grad;
+    return psi->forward(x);
+  }
+
+  // One TD step: psi(x) -> phi(x) + gamma * alive * psi'(next).
+  void Train(const torch::Tensor& x, const torch::Tensor& next, const torch::Tensor& alive, double gamma) {
+    torch::Tensor goal;
+    {
+      torch::NoGradGuard no_grad;
+      goal = phi->forward(x) + gamma * alive.unsqueeze(1) * psi_target->forward(next);
+    }
+    optimizer->zero_grad();
+    const torch::Tensor loss = (psi->forward(x) - goal).pow(2).sum(1).mean();
+    loss.backward();
+    optimizer->step();
+  }
+
+  void Write(torch::serialize::OutputArchive& archive, const std::string& prefix) const {
+    torch::serialize::OutputArchive a, b, c, o;
+    phi->save(a);
+    psi->save(b);
+    psi_target->save(c);
+    optimizer->save(o);
+    archive.write(prefix + "phi", a);
+    archive.write(prefix + "psi", b);
+    archive.write(prefix + "psi_target", c);
+    archive.write(prefix + "optimizer", o);
+  }
+
+  void Read(torch::serialize::InputArchive& archive, const std::string& prefix) {
+    torch::serialize::InputArchive a, b, c, o;
+    archive.read(prefix + "phi", a);
+    archive.read(prefix + "psi", b);
+    archive.read(prefix + "psi_target", c);
+    archive.read(prefix + "optimizer", o);
+    phi->load(a);
+    psi->load(b);
+    psi_target->load(c);
+    optimizer->load(o);
+  }
+
+  Mlp phi;
+  Mlp psi;
+  Mlp psi_target;
+  std::unique_ptr<torch::optim::Adam> optimizer;
+};
+
+torch::Tensor Alive(const TransitionBatch& batch) {
+  torch::Tensor alive = torch::ones({batch.size}, torch::kFloat32);
+  if (batch.terminated != nullptr) {
+    float* a = alive.data_ptr<float>();
+    for (int64_t i = 0; i < batch.size; ++i) a[i] = batch.terminated[i] ? 0.0f : 1.0f;
+  }
+  return alive;
+}
+
+uint64_t Mix(uint64_t h, uint64_t x) {
+  uint64_t s = h ^ (x + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2));
+  return Rng::SplitMix64(s);
+}
+
+}  // namespace
+
+struct SfScorer::Impl {
+  Impl(const env::Scenario& scenario, const ScorerConfig& config, const SfConfig& sf)
+      : n(scenario.num_agents()),
+        config(config),
+        sf(sf),
+        encoder(scenario),
+        tag(absl::StrCat(kMagic, " ", scenario.name(), " ", scenario.map().width(), "x", scenario.map().height(),
+                         " n=", n, " credit=", CreditName(config.credit),
+                         " permutation=", PermutationName(config.permutation))) {
+    if (config.credit == Credit::kIndependent) {
+      local.emplace(encoder.local_state_dim(config.permutation == Permutation::kOff), sf);
+    } else if (config.credit != Credit::kNone) {
+      joint.emplace(encoder.state_dim(), sf);
+    }
+  }
+
+  // N_ep including this visit; counted unless dry_run.
+  uint32_t Visit(uint64_t key, bool dry_run) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) {
+    auto it = visits.find(key);
+    uint32_t count = it != visits.end() ? it->second : 0;
+    if (it == visits.end()) {
+      auto old = previous_visits.find(key);
+      if (old != previous_visits.end()) count = old->second;
+    }
+    if (!dry_run) visits[key] = count + 1;
+    return count + 1;
+  }
+
+  void EndRequest(bool dry_run) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) {
+    if (dry_run) return;
+    ++requests;
+    if (requests % sf.target_update == 0) {
+      if (joint) joint->SyncTarget();
+      if (local) local->SyncTarget();
+    }
+    if (requests % kGenerationRequests == 0) {
+      previous_visits = std::move(visits);
+      visits.clear();
+    }
+  }
+
+  void ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+
+  const int n;
+  const ScorerConfig config;
+  const SfConfig sf;
+  const JointInputEncoder encoder;
+  const std::string tag;
+
+  mutable absl::Mutex mu;
+  std::optional<SfModel> joint ABSL_GUARDED_BY(mu);
+  std::optional<SfModel> local ABSL_GUARDED_BY(mu);
+  int64_t requests ABSL_GUARDED_BY(mu) = 0;
+  absl::flat_hash_map<uint64_t, uint32_t> visits ABSL_GUARDED_BY(mu);
+  absl::flat_hash_map<uint64_t, uint32_t> previous_visits ABSL_GUARDED_BY(mu);
+};
+
+void SfScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  const int64_t N = batch.size, D = encoder.state_dim(), K = batch.state_size;
+  const bool imca = config.credit == Credit::kImca;
+  // Rows: S_t [N], S_{t+1} [N], then (imca) S_t with only agent a moved [N][n].
+  const int64_t rows = N * (2 + (imca ? n : 0));
+  torch::Tensor inputs = torch::empty({rows, D}, torch::kFloat32);
+  float* x = inputs.data_ptr<float>();
+  int order[env::kMaxAgents];
+  for (int a = 0; a < n; ++a) order[a] = a;
+  std::vector<int32_t> moved(K);
+  for (int64_t i = 0; i < N; ++i) {
+    const int32_t* now = batch.states + i * K;
+    const int32_t* next = batch.next_states + i * K;
+    encoder.EncodeState(now, order, x + i * D);
+    encoder.EncodeState(next, order, x + (N + i) * D);
+    if (!imca) continue;
+    for (int a = 0; a < n; ++a) {
+      std::copy(now, now + K, moved.begin());
+      moved[env::AgentIndex(a)] = next[env::AgentIndex(a)];
+      // Another agent may stand on that cell at t: the encoding is still
+      // defined (two one-hots coincide), as in the paper's eq. 11.
+      encoder.EncodeState(moved.data(), order, x + (2 * N + i * n + a) * D);
+    }
+  }
+  SfModel& model = *joint;
+  const torch::Tensor psi = model.Psi(inputs);
+  const torch::Tensor psi_now = psi.narrow(0, 0, N);
+  const torch::Tensor global = (psi.narrow(0, N, N) - psi_now).pow(2).sum(1).contiguous();
+  const float* g = global.data_ptr<float>();
+  torch::Tensor d;
+  if (imca) {
+    d = (psi.narrow(0, 2 * N, N * n).view({N, n, -1}) - psi_now.unsqueeze(1)).pow(2).sum(2).contiguous();
+  }
+  const float beta = static_cast<float>(config.beta);
+  for (int64_t i = 0; i < N; ++i) {
+    const float R = beta * g[i];
+    out.global_rewards[i] = R;
+    float* contributions = out.contributions + i * n;
+    float* shares = out.shares + i * n;
+    float* rewards = out.agent_rewards + i * n;
+    if (!imca) {
+      for (int a = 0; a < n; ++a) {
+        contributions[a] = 0;
+        shares[a] = 1.0f / n;
+        rewards[a] = R;
+      }
+      continue;
+    }
+    const float* da = d.data_ptr<float>() + i * n;
+    for (int a = 0; a < n; ++a) contributions[a] = da[a];
+    SoftmaxShares(contributions, n, config.temperature, shares);
+    const int32_t* next = batch.next_states + i * K;
+    for (int a = 0; a < n; ++a) {
+      uint64_t key = Mix(Mix(Mix(batch.actor, static_cast<uint64_t>(batch.episode_ids[i])), a),
+                         static_cast<uint64_t>(next[env::AgentIndex(a)]));
+      const uint32_t visits = Visit(key, dry_run);
+      rewards[a] = static_cast<float>(R * shares[a] / std::sqrt(static_cast<double>(visits)));
+    }
+  }
+  if (!dry_run) model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
+}
+
+void SfScorer::Impl::ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  const bool with_id = config.permutation == Permutation::kOff;
+  const int64_t N = batch.size, D = encoder.local_state_dim(with_id), K = batch.state_size;
+  torch::Tensor inputs = torch::empty({2 * N * n, D}, torch::kFloat32);
+  float* x = inputs.data_ptr<float>();
+  for (int64_t i = 0; i < N; ++i) {
+    for (int a = 0; a < n; ++a) {
+      encoder.EncodeLocalState(batch.states + i * K, a, with_id, x + (i * n + a) * D);
+      encoder.EncodeLocalState(batch.next_states + i * K, a, with_id, x + (N * n + i * n + a) * D);
+    }
+  }
+  SfModel& model = *local;
+  const torch::Tensor psi = model.Psi(inputs);
+  const torch::Tensor novelty = (psi.narrow(0, N * n, N * n) - psi.narrow(0, 0, N * n)).pow(2).sum(1).contiguous();
+  const float* nov = novelty.data_ptr<float>();
+  const float beta = static_cast<float>(config.beta);
+  for (int64_t i = 0; i < N; ++i) {
+    float total = 0;
+    for (int a = 0; a < n; ++a) {
+      out.contributions[i * n + a] = nov[i * n + a];
+      out.agent_rewards[i * n + a] = beta * nov[i * n + a];
+      total += out.agent_rewards[i * n + a];
+    }
+    out.global_rewards[i] = total;
+    for (int a = 0; a < n; ++a) out.shares[i * n + a] = total > 0 ? out.agent_rewards[i * n + a] / total : 1.0f / n;
+  }
+  if (!dry_run) {
+    const torch::Tensor alive = Alive(batch).repeat_interleave(n);
+    model.Train(inputs.narrow(0, 0, N * n), inputs.narrow(0, N * n, N * n), alive, sf.gamma);
+  }
+}
+
+absl::StatusOr<std::unique_ptr<SfScorer>> SfScorer::Create(const env::Scenario& scenario,
+                                                           const ScorerConfig& config, const SfConfig& sf) {
+  if (sf.features < 1) return absl::InvalidArgumentError("sf features must be >= 1");
+  for (int h : sf.hidden) {
+    if (h < 1) return absl::InvalidArgumentError("sf hidden sizes must be >= 1");
+  }
+  if (!(sf.gamma >= 0 && sf.gamma < 1)) return absl::InvalidArgumentError("sf gamma must be in [0, 1)");
+  if (!(sf.learning_rate > 0)) return absl::InvalidArgumentError("sf learning rate must be > 0");
+  if (sf.target_update < 1) return absl::InvalidArgumentError("sf target update period must be >= 1");
+  torch::set_num_threads(std::max(1, sf.threads));
+  torch::manual_seed(config.seed);
+  return std::unique_ptr<SfScorer>(new SfScorer(std::make_unique<Impl>(scenario, config, sf)));
+}
+
+SfScorer::SfScorer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+SfScorer::~SfScorer() = default;
+
+absl::Status SfScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  const int n = impl_->n;
+  if (impl_->config.credit == Credit::kNone) {
+    for (int64_t i = 0; i < batch.size; ++i) {
+      out.global_rewards[i] = 0;
+      for (int a = 0; a < n; ++a) {
+        out.contributions[i * n + a] = out.agent_rewards[i * n + a] = 0;
+        out.shares[i * n + a] = 1.0f / n;
+      }
+    }
+    return absl::OkStatus();
+  }
+  absl::MutexLock lock(&impl_->mu);
+  try {
+    if (impl_->config.credit == Credit::kIndependent) {
+      impl_->ScoreLocal(batch, dry_run, out);
+    } else {
+      impl_->ScoreJoint(batch, dry_run, out);
+    }
+    impl_->EndRequest(dry_run);
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("sf: ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+void SfScorer::FillStats(v1::RewardStats* stats) const {
+  absl::MutexLock lock(&impl_->mu);
+  stats->set_model_updates(impl_->requests);
+  stats->set_distinct_keys(static_cast<int64_t>(impl_->visits.size()));
+}
+
+absl::Status SfScorer::Save(const std::string& path) const {
+  absl::MutexLock lock(&impl_->mu);
+  try {
+    torch::serialize::OutputArchive archive;
+    archive.write("tag", c10::IValue(impl_->tag));
+    if (impl_->joint) impl_->joint->Write(archive, "joint.");
+    if (impl_->local) impl_->local->Write(archive, "local.");
+    archive.write("requests", torch::tensor(impl_->requests, torch::kInt64));
+    const std::string tmp = path + ".tmp";
+    archive.save_to(tmp);
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+      return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
+    }
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status SfScorer::Load(const std::string& path) {
+  absl::MutexLock lock(&impl_->mu);
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const std::exception&) {
+    return absl::NotFoundError(absl::StrCat("no readable snapshot at '", path, "'"));
+  }
+  try {
+    c10::IValue tag;
+    archive.read("tag", tag);
+    if (!tag.isString() || tag.toStringRef() != impl_->tag) {
+      return absl::FailedPreconditionError(absl::StrCat("snapshot '", path, "' was written by '",
+                                                        tag.isString() ? tag.toStringRef() : "?",
+                                                        "', not by this configuration"));
+    }
+    std::optional<SfModel> joint, local;
+    if (impl_->joint) {
+      joint.emplace(impl_->encoder.state_dim(), impl_->sf);
+      joint->Read(archive, "joint.");
+    }
+    if (impl_->local) {
+      local.emplace(impl_->encoder.local_state_dim(impl_->config.permutation == Permutation::kOff), impl_->sf);
+      local->Read(archive, "local.");
+    }
+    torch::Tensor requests;
+    archive.read("requests", requests);
+    impl_->joint.swap(joint);
+    impl_->local.swap(local);
+    impl_->requests = requests.item<int64_t>();
+  } catch (const std::exception& e) {
+    return absl::DataLossError(absl::StrCat("snapshot '", path, "': ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
+                                        const std::vector<float>& bias) {
+  absl::MutexLock lock(&impl_->mu);
+  const bool is_local = net.rfind("local_", 0) == 0;
+  std::optional<SfModel>& model = is_local ? impl_->local : impl_->joint;
+  if (!model) return absl::InvalidArgumentError(absl::StrCat("no model for '", net, "' in this credit mode"));
+  const std::string which = is_local ? net.substr(6) : net;
+  if (which != "phi" && which != "psi") return absl::InvalidArgumentError("net is phi or psi");
+  Mlp& mlp = which == "phi" ? model->phi : model->psi;
+  if (layer < 0 || layer >= static_cast<int>(mlp->layers().size())) return absl::InvalidArgumentError("bad layer");
+  torch::nn::Linear& linear = mlp->layers()[layer];
+  if (static_cast<int64_t>(weight.size()) != linear->weight.numel() ||
+      static_cast<int64_t>(bias.size()) != linear->bias.numel()) {
+    return absl::InvalidArgumentError(absl::StrCat("layer ", layer, " is ", linear->weight.size(0), "x",
+                                                   linear->weight.size(1)));
+  }
+  {
+    torch::NoGradGuard no_grad;
+    linear->weight.copy_(torch::tensor(weight).reshape(linear->weight.sizes()));
+    linear->bias.copy_(torch::tensor(bias));
+  }
+  model->SyncTarget();
+  return absl::OkStatus();
+}
+
+std::vector<float> SfScorer::PhiForTest(const int32_t* state) const {
+  absl::MutexLock lock(&impl_->mu);
+  std::vector<float> x(impl_->encoder.state_dim());
+  int order[env::kMaxAgents];
+  for (int a = 0; a < impl_->n; ++a) order[a] = a;
+  impl_->encoder.EncodeState(state, order, x.data());
+  torch::NoGradGuard no_grad;
+  const torch::Tensor y = impl_->joint->phi->forward(torch::tensor(x).unsqueeze(0)).squeeze(0).contiguous();
+  return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
+}
+
+std::vector<float> SfScorer::PsiForTest(const int32_t* state) const {
+  absl::MutexLock lock(&impl_->mu);
+  std::vector<float> x(impl_->encoder.state_dim());
+  int order[env::kMaxAgents];
+  for (int a = 0; a < impl_->n; ++a) order[a] = a;
+  impl_->encoder.EncodeState(state, order, x.data());
+  const torch::Tensor y = impl_->joint->Psi(torch::tensor(x).unsqueeze(0)).squeeze(0).contiguous();
+  return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
+}
+
+}  // namespace imca::reward

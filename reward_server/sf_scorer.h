@@ -1,0 +1,65 @@
+#ifndef IMCA_REWARD_SERVER_SF_SCORER_H_
+#define IMCA_REWARD_SERVER_SF_SCORER_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "common/env.h"
+#include "reward_server/credit.h"
+#include "reward_server/scorer.h"
+
+namespace imca::reward {
+
+struct SfConfig {
+  std::vector<int> hidden = {128, 128};  // Hidden widths of phi and psi; {} = one linear layer.
+  int features = 32;                     // Size of phi and psi.
+  double gamma = 0.95;                   // Successor-feature discount gamma_sf.
+  double learning_rate = 1e-3;           // Adam, psi only.
+  int target_update = 20;                // Requests between copies of psi into its target.
+  int threads = 1;                       // LibTorch intra-op threads.
+};
+
+// Successor-feature control (paper eq. 7, 11-13; SPEC 4.3, 5):
+//   phi: a fixed random network of the joint state (JointInputEncoder, agent
+//   order); psi trained by TD, psi(S_t) -> phi(S_t) + gamma psi'(S_{t+1})
+//   (psi' = target copy; 0 after termination);
+//   R_i = beta ||psi(S_{t+1}) - psi(S_t)||^2.
+//   imca: d^a = ||psi(S_t with only agent a moved to s^a_{t+1}) - psi(S_t)||^2,
+//   p^a = softmax(d / tau), r_i^a = R_i p^a / sqrt(N_ep(s^a)), where N_ep
+//   counts agent a's visits to the cell it reached, in this episode, this one
+//   included (keyed by actor, episode id, agent and cell).
+//   independent: a second SF over each agent's own cell; shared: R_i each.
+// A request is scored with psi as it was before it, then psi takes one Adam
+// step on the request's transitions. Thread-safe (one mutex).
+class SfScorer final : public Scorer {
+ public:
+  // Errors: INVALID_ARGUMENT for bad config values.
+  static absl::StatusOr<std::unique_ptr<SfScorer>> Create(const env::Scenario& scenario,
+                                                          const ScorerConfig& config, const SfConfig& sf);
+  ~SfScorer() override;
+
+  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  void FillStats(v1::RewardStats* stats) const override;
+  // Models only: episodic visit counts are transient and start afresh.
+  absl::Status Save(const std::string& path) const override;
+  absl::Status Load(const std::string& path) override;
+
+  // Tests: set layer `layer` of "phi" or "psi" (joint model; "local_phi",
+  // "local_psi" for independent credit; the target copy follows psi).
+  absl::Status SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
+                                const std::vector<float>& bias);
+  // Tests: phi and psi of one state of the joint model, `features` floats each.
+  std::vector<float> PhiForTest(const int32_t* state) const;
+  std::vector<float> PsiForTest(const int32_t* state) const;
+
+ private:
+  struct Impl;
+  explicit SfScorer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_SF_SCORER_H_

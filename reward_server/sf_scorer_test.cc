@@ -1,0 +1,156 @@
+// Successor-feature control with credit assignment (paper eq. 7, 11-13).
+#include "reward_server/sf_scorer.h"
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <vector>
+
+#include "common/env.h"
+#include "common/test_unrolls.h"
+#include "gtest/gtest.h"
+
+namespace imca::reward {
+namespace {
+
+constexpr int kN = 2;
+
+struct Scored {
+  std::vector<float> global, contributions, shares, agent_rewards;
+};
+
+class SfScorerTest : public ::testing::Test {
+ protected:
+  void Use(const char* map_text) {
+    auto map = env::GridMap::Parse(map_text, "line");
+    ASSERT_TRUE(map.ok());
+    auto scenario = env::MakeScenarioWithMap(env::ScenarioConfig{}, *std::move(map));
+    ASSERT_TRUE(scenario.ok());
+    scenario_ = *std::move(scenario);
+  }
+  void SetUp() override { Use("1..T2\n"); }
+
+  // One env, T = transitions; cells are (agent 1, agent 2) before and after.
+  Scored Score(SfScorer& scorer, const std::vector<std::vector<int32_t>>& now,
+               const std::vector<std::vector<int32_t>>& next, const std::vector<bool>& terminated, bool dry_run) {
+    const int64_t size = now.size();
+    std::vector<int32_t> states, next_states, actions(size * kN, env::kStay);
+    std::vector<float> probs(size * kN * 5, 0.2f);
+    std::vector<int64_t> episode_ids(size, 7);
+    std::unique_ptr<bool[]> ended(new bool[size]);
+    for (int64_t i = 0; i < size; ++i) {
+      states.insert(states.end(), {0, now[i][0], now[i][1], 0});
+      next_states.insert(next_states.end(), {0, next[i][0], next[i][1], 1});
+      ended[i] = terminated[i];
+    }
+    Scored r;
+    r.global.resize(size);
+    r.contributions.resize(size * kN);
+    r.shares.resize(size * kN);
+    r.agent_rewards.resize(size * kN);
+    TransitionBatch batch{size, size, 1, 4, states.data(), next_states.data(), actions.data(), probs.data(),
+                          episode_ids.data(), ended.get(), 42};
+    EXPECT_TRUE(scorer.Score(batch, dry_run,
+                             {r.global.data(), r.contributions.data(), r.shares.data(), r.agent_rewards.data()})
+                    .ok());
+    return r;
+  }
+
+  std::unique_ptr<SfScorer> Make(Credit credit, SfConfig sf = {}) {
+    ScorerConfig config;
+    config.credit = credit;
+    auto scorer = SfScorer::Create(*scenario_, config, sf);
+    EXPECT_TRUE(scorer.ok()) << scorer.status();
+    return *std::move(scorer);
+  }
+
+  std::unique_ptr<env::Scenario> scenario_;
+};
+
+TEST_F(SfScorerTest, SharesAndEpisodicCountsMatchHandWorkedNumbers) {
+  SfConfig sf;
+  sf.hidden = {};
+  sf.features = 2;
+  auto scorer = Make(Credit::kImca, sf);
+  // State input: agent 1 [row(1) | col(5)], agent 2 [row | col], treasure bit.
+  // psi_0 = agent 1's column, psi_1 = twice agent 2's column.
+  std::vector<float> w(2 * 13, 0.0f);
+  for (int c = 0; c < 5; ++c) {
+    w[1 + c] = static_cast<float>(c);
+    w[13 + 7 + c] = 2.0f * c;
+  }
+  ASSERT_TRUE(scorer->SetLinearForTest("psi", 0, w, {0.0f, 0.0f}).ok());
+  // Agent 1: 0 -> 1, agent 2: 4 -> 3, twice in one episode.
+  const Scored r = Score(*scorer, {{0, 4}, {0, 4}}, {{1, 3}, {1, 3}}, {false, false}, /*dry_run=*/false);
+  // psi(S_t) = (0, 8), psi(S_t+1) = (1, 6): R = 1 + 4 = 5.
+  EXPECT_NEAR(r.global[0], 5.0f, 1e-5);
+  // d^1 = |(1, 8) - (0, 8)|^2 = 1, d^2 = |(0, 6) - (0, 8)|^2 = 4.
+  EXPECT_NEAR(r.contributions[0], 1.0f, 1e-5);
+  EXPECT_NEAR(r.contributions[1], 4.0f, 1e-5);
+  EXPECT_NEAR(r.shares[1], 0.9525741f, 1e-5);  // 1 / (1 + e^-3).
+  // First visit of each agent's cell: N_ep = 1.
+  EXPECT_NEAR(r.agent_rewards[0], 0.2371293f, 1e-5);
+  EXPECT_NEAR(r.agent_rewards[1], 4.7628707f, 1e-5);
+  // Second visit in the same episode: divided by sqrt(2).
+  EXPECT_NEAR(r.agent_rewards[2], 0.1676758f, 1e-5);
+  EXPECT_NEAR(r.agent_rewards[3], 3.3678581f, 1e-5);
+}
+
+TEST_F(SfScorerTest, PsiConvergesToAnalyticSuccessorFeaturesOnAChain) {
+  Use("1....T2\n");
+  SfConfig sf;
+  sf.gamma = 0.9;
+  sf.target_update = 5;
+  sf.learning_rate = 3e-3;
+  auto scorer = Make(Credit::kShared, sf);
+  // Agent 1 walks 0 -> 1 -> 2 -> 3, where the episode terminates; agent 2 stays at 6.
+  for (int i = 0; i < 2000; ++i) {
+    Score(*scorer, {{0, 6}, {1, 6}, {2, 6}}, {{1, 6}, {2, 6}, {3, 6}}, {false, false, true}, false);
+  }
+  std::vector<std::vector<float>> phi;
+  for (int cell = 0; cell < 3; ++cell) {
+    const std::vector<int32_t> state = {0, cell, 6, 0};
+    phi.push_back(scorer->PhiForTest(state.data()));
+  }
+  const std::vector<int32_t> s0 = {0, 0, 6, 0};
+  const std::vector<float> psi = scorer->PsiForTest(s0.data());
+  double error = 0, norm = 0;
+  for (size_t f = 0; f < psi.size(); ++f) {
+    const double analytic = phi[0][f] + 0.9 * phi[1][f] + 0.81 * phi[2][f];
+    error += (psi[f] - analytic) * (psi[f] - analytic);
+    norm += analytic * analytic;
+  }
+  EXPECT_GT(norm, 0.0);
+  EXPECT_LT(std::sqrt(error), 0.05 * std::sqrt(norm)) << "psi did not converge to sum_k gamma^k phi";
+}
+
+TEST_F(SfScorerTest, IndependentCreditScoresEachAgentsOwnSuccessorFeatures) {
+  auto scorer = Make(Credit::kIndependent);
+  const Scored r = Score(*scorer, {{0, 4}}, {{1, 4}}, {false}, false);
+  EXPECT_GT(r.agent_rewards[0], 0.0f);   // Agent 1 moved.
+  EXPECT_EQ(r.agent_rewards[1], 0.0f);   // Agent 2 stayed: same local state.
+  EXPECT_NEAR(r.global[0], r.agent_rewards[0], 1e-6);
+}
+
+TEST_F(SfScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
+  const std::string path = ::testing::TempDir() + "/sf_snapshot_" + std::to_string(getpid()) + ".pt";
+  auto scorer = Make(Credit::kImca);
+  for (int i = 0; i < 5; ++i) Score(*scorer, {{0, 4}, {1, 4}}, {{1, 4}, {1, 3}}, {false, false}, false);
+  ASSERT_TRUE(scorer->Save(path).ok());
+  ScorerConfig config;
+  config.credit = Credit::kImca;
+  config.seed = 77;
+  auto restored = SfScorer::Create(*scenario_, config, SfConfig{});
+  ASSERT_TRUE(restored.ok());
+  ASSERT_TRUE((*restored)->Load(path).ok());
+  const Scored a = Score(*scorer, {{2, 4}}, {{2, 3}}, {false}, true);
+  const Scored b = Score(**restored, {{2, 4}}, {{2, 3}}, {false}, true);
+  EXPECT_EQ(a.global, b.global);
+  EXPECT_EQ(a.contributions, b.contributions);
+  auto other = Make(Credit::kShared);
+  EXPECT_EQ(other->Load(path).code(), absl::StatusCode::kFailedPrecondition);
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace imca::reward
