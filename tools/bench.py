@@ -1,9 +1,10 @@
 #!/usr/bin/python3
-"""./imca bench speed|env|learn: benchmarks run by hand (never in CI).
+"""./imca bench speed|env|reward|learn: benchmarks run by hand (never in CI).
 
 speed  component ceilings (bench_speed) and end-to-end training throughput,
        with the ratio end-to-end / learner-only.
 env    joint env steps/s of every scenario on one core (vectorised).
+reward Score throughput for count, rnd, sf with 2 and 4 agents; counterfactual share.
 learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds on
        the default coop_nav map; final success rate and env steps to 90%.
 """
@@ -64,6 +65,14 @@ def env_bench(args, base):
         sys.exit(f"imca bench: bench_env failed: {r.stderr.strip()}")
 
 
+def reward_bench(args, base):
+    r = subprocess.run([os.path.join(BIN, "bench_reward"), str(args.rounds)], capture_output=True, text=True,
+                       env=dict(os.environ, OMP_WAIT_POLICY="passive"))
+    print(r.stdout, end="")
+    if r.returncode != 0:
+        sys.exit(f"imca bench: bench_reward failed: {r.stderr.strip()}")
+
+
 def learn(args, base):
     modes = args.credits.split(",")
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -71,11 +80,12 @@ def learn(args, base):
     for credit in modes:
         for seed in seeds:
             out = os.path.join(base, f"{credit}-seed{seed}")
-            summary, _ = train(out, ["--credit", credit, "--seed", str(seed), "--steps", str(args.steps)])
+            summary, _ = train(out, ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
+                                     "--seed", str(seed), "--steps", str(args.steps)])
             results[(credit, seed)] = summary
             print(f"{credit:12s} seed {seed}: final success {summary['final_success_rate']:.1%}, "
-                  f"steps to 90% {summary['steps_to_90pct_success']}, {summary['env_steps_per_sec']:.0f} steps/s",
-                  flush=True)
+                  f"steps to 80% {summary['steps_to_80pct_success']}, to 90% {summary['steps_to_90pct_success']}, "
+                  f"{summary['env_steps_per_sec']:.0f} steps/s", flush=True)
     print()
     print("| credit | final success (per seed) | mean | env steps to 90% (per seed) |")
     print("|---|---|---|---|")
@@ -97,14 +107,20 @@ def main(argv):
     s.add_argument("--steps", type=int, default=600_000)
     e = sub.add_parser("env")
     e.add_argument("--rounds", type=int, default=7)
+    rw = sub.add_parser("reward")
+    rw.add_argument("--rounds", type=int, default=5)
     l = sub.add_parser("learn")
     l.add_argument("--credits", default="none,shared,independent,imca")
     l.add_argument("--seeds", default="1,2,3")
     l.add_argument("--steps", type=int, default=2_000_000)
+    l.add_argument("--scenario", default="coop_nav")
+    l.add_argument("--reward", default="count")
     args = p.parse_args(argv)
-    base = os.path.join(ROOT, "runs", f"bench-{args.what}-" + datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    base = os.path.join(ROOT, "runs", f"bench-{args.what}-"
+                        + (f"{args.scenario}-{args.reward}-" if args.what == "learn" else "") + stamp)
     os.makedirs(base, exist_ok=True)
-    {"speed": speed, "env": env_bench, "learn": learn}[args.what](args, base)
+    {"speed": speed, "env": env_bench, "reward": reward_bench, "learn": learn}[args.what](args, base)
 
 
 if __name__ == "__main__":

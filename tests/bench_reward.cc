@@ -1,0 +1,85 @@
+// ./imca bench reward: Score throughput through loopback gRPC (one unroll of
+// 64 steps x 32 envs per call) for count, RND and SF with 2 agents (coop_nav)
+// and 4 agents (predator_prey), and the share of time imca's counterfactuals
+// add (1 - time(shared) / time(imca), same kind and scenario). Medians.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <vector>
+
+#include "common/env.h"
+#include "common/grpc_util.h"
+#include "common/test_unrolls.h"
+#include "reward_server/count_scorer.h"
+#include "reward_server/reward_service.h"
+#include "reward_server/rnd_scorer.h"
+#include "reward_server/sf_scorer.h"
+
+namespace imca {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::unique_ptr<reward::Scorer> MakeScorer(const std::string& kind, const env::Scenario& scenario,
+                                           const reward::ScorerConfig& config) {
+  if (kind == "count") return std::make_unique<reward::CountScorer>(scenario, config);
+  if (kind == "rnd") return *reward::RndScorer::Create(scenario, config, reward::RndConfig{});
+  return *reward::SfScorer::Create(scenario, config, reward::SfConfig{});
+}
+
+// Median transitions/s of Score calls with `credit`.
+double Throughput(const std::string& kind, const env::Scenario& scenario, reward::Credit credit, int rounds) {
+  reward::ScorerConfig config;
+  config.credit = credit;
+  auto scorer = MakeScorer(kind, scenario, config);
+  reward::RewardServiceImpl service(&scenario, scorer.get(), kind, config, "");
+  int port = 0;
+  auto server = StartServer("127.0.0.1:0", {&service}, &port);
+  if (!server.ok()) return 0;
+  auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+  std::vector<v1::ScoreRequest> requests(4);
+  for (size_t i = 0; i < requests.size(); ++i) {
+    *requests[i].mutable_unroll() = testing::RandomUnroll(scenario, 64, 32, 300 + i);
+  }
+  std::vector<double> rates;
+  for (int r = 0; r < rounds + 1; ++r) {
+    const int calls = kind == "count" ? 40 : 8;
+    const auto start = Clock::now();
+    for (int c = 0; c < calls; ++c) {
+      grpc::ClientContext context;
+      context.set_deadline(DeadlineIn(std::chrono::seconds(60)));
+      v1::ScoreResponse response;
+      if (!stub->Score(&context, requests[c % requests.size()], &response).ok()) return 0;
+    }
+    if (r > 0) rates.push_back(calls * 64.0 * 32.0 / std::chrono::duration<double>(Clock::now() - start).count());
+  }
+  (*server)->Shutdown();
+  std::sort(rates.begin(), rates.end());
+  return rates[rates.size() / 2];
+}
+
+}  // namespace
+}  // namespace imca
+
+int main(int argc, char** argv) {
+  using namespace imca;
+  const int rounds = argc > 1 ? std::max(3, std::atoi(argv[1])) : 5;
+  std::printf("%-6s %-14s %6s %18s %18s %16s\n", "kind", "scenario", "agents", "imca_trans/s", "shared_trans/s",
+              "counterfactuals");
+  for (const char* name : {"coop_nav", "predator_prey"}) {
+    env::ScenarioConfig config;
+    config.name = name;
+    auto scenario = env::MakeScenario(config, env::DefaultMapDir());
+    if (!scenario.ok()) return 1;
+    for (const char* kind : {"count", "rnd", "sf"}) {
+      const double imca = Throughput(kind, **scenario, reward::Credit::kImca, rounds);
+      const double shared = Throughput(kind, **scenario, reward::Credit::kShared, rounds);
+      std::printf("%-6s %-14s %6d %18.0f %18.0f %15.0f%%\n", kind, name, (*scenario)->num_agents(), imca, shared,
+                  100.0 * (1.0 - imca / shared));
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
