@@ -318,13 +318,7 @@ RndScorer::~RndScorer() = default;
 absl::Status RndScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
   const int n = impl_->n;
   if (impl_->config.credit == Credit::kNone) {
-    for (int64_t i = 0; i < batch.size; ++i) {
-      out.global_rewards[i] = 0;
-      for (int a = 0; a < n; ++a) {
-        out.contributions[i * n + a] = out.agent_rewards[i * n + a] = 0;
-        out.shares[i * n + a] = 1.0f / n;
-      }
-    }
+    WriteNoCredit(batch, n, out);
     return absl::OkStatus();
   }
   absl::MutexLock lock(&impl_->mu);
@@ -347,39 +341,16 @@ void RndScorer::FillStats(v1::RewardStats* stats) const {
 
 absl::Status RndScorer::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
-  try {
-    torch::serialize::OutputArchive archive;
-    archive.write("tag", c10::IValue(impl_->tag));
+  return SaveArchive(path, impl_->tag, [&](torch::serialize::OutputArchive& archive) {
     if (impl_->joint) impl_->joint->Write(archive, "joint.");
     if (impl_->local) impl_->local->Write(archive, "local.");
     archive.write("updates", torch::tensor(impl_->updates, torch::kInt64));
-    const std::string tmp = path + ".tmp";
-    archive.save_to(tmp);
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-      return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
-    }
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
-  }
-  return absl::OkStatus();
+  });
 }
 
 absl::Status RndScorer::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const std::exception& e) {
-    return absl::NotFoundError(absl::StrCat("no readable snapshot at '", path, "'"));
-  }
-  try {
-    c10::IValue tag;
-    archive.read("tag", tag);
-    if (!tag.isString() || tag.toStringRef() != impl_->tag) {
-      return absl::FailedPreconditionError(absl::StrCat("snapshot '", path, "' was written by '",
-                                                        tag.isString() ? tag.toStringRef() : "?",
-                                                        "', not by this configuration"));
-    }
+  return LoadArchive(path, impl_->tag, [&](torch::serialize::InputArchive& archive) {
     // Read into fresh models; swap them in only when everything was read.
     std::optional<Model> joint, local;
     if (impl_->joint) {
@@ -395,31 +366,19 @@ absl::Status RndScorer::Load(const std::string& path) {
     impl_->joint.swap(joint);
     impl_->local.swap(local);
     impl_->updates = updates.item<int64_t>();
-  } catch (const std::exception& e) {
-    return absl::DataLossError(absl::StrCat("snapshot '", path, "': ", e.what()));
-  }
-  return absl::OkStatus();
+  });
 }
 
 absl::Status RndScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
                                          const std::vector<float>& bias) {
   absl::MutexLock lock(&impl_->mu);
-  std::optional<Model>& model = net.rfind("local_", 0) == 0 ? impl_->local : impl_->joint;
-  if (!model) return absl::InvalidArgumentError(absl::StrCat("no model for '", net, "' in this credit mode"));
-  const std::string which = net.rfind("local_", 0) == 0 ? net.substr(6) : net;
-  if (which != "target" && which != "predictor") return absl::InvalidArgumentError("net is target or predictor");
-  Mlp& mlp = which == "target" ? model->target : model->predictor;
-  if (layer < 0 || layer >= static_cast<int>(mlp->layers().size())) return absl::InvalidArgumentError("bad layer");
-  torch::nn::Linear& linear = mlp->layers()[layer];
-  if (static_cast<int64_t>(weight.size()) != linear->weight.numel() ||
-      static_cast<int64_t>(bias.size()) != linear->bias.numel()) {
-    return absl::InvalidArgumentError(absl::StrCat("layer ", layer, " is ", linear->weight.size(0), "x",
-                                                   linear->weight.size(1)));
+  const bool is_local = net.rfind("local_", 0) == 0;
+  std::optional<Model>& model = is_local ? impl_->local : impl_->joint;
+  const std::string which = is_local ? net.substr(6) : net;
+  if (!model || (which != "target" && which != "predictor")) {
+    return absl::InvalidArgumentError(absl::StrCat("no net '", net, "' in this credit mode"));
   }
-  torch::NoGradGuard no_grad;
-  linear->weight.copy_(torch::tensor(weight).reshape(linear->weight.sizes()));
-  linear->bias.copy_(torch::tensor(bias));
-  return absl::OkStatus();
+  return SetLinear(which == "target" ? model->target : model->predictor, layer, weight, bias);
 }
 
 }  // namespace imca::reward

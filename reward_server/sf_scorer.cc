@@ -10,6 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/mutex.h"
 #include "common/rng.h"
+#include "common/status_macros.h"
 #include "reward_server/joint_input.h"
 #include "reward_server/torch_mlp.h"
 
@@ -281,13 +282,7 @@ SfScorer::~SfScorer() = default;
 absl::Status SfScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
   const int n = impl_->n;
   if (impl_->config.credit == Credit::kNone) {
-    for (int64_t i = 0; i < batch.size; ++i) {
-      out.global_rewards[i] = 0;
-      for (int a = 0; a < n; ++a) {
-        out.contributions[i * n + a] = out.agent_rewards[i * n + a] = 0;
-        out.shares[i * n + a] = 1.0f / n;
-      }
-    }
+    WriteNoCredit(batch, n, out);
     return absl::OkStatus();
   }
   absl::MutexLock lock(&impl_->mu);
@@ -312,39 +307,16 @@ void SfScorer::FillStats(v1::RewardStats* stats) const {
 
 absl::Status SfScorer::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
-  try {
-    torch::serialize::OutputArchive archive;
-    archive.write("tag", c10::IValue(impl_->tag));
+  return SaveArchive(path, impl_->tag, [&](torch::serialize::OutputArchive& archive) {
     if (impl_->joint) impl_->joint->Write(archive, "joint.");
     if (impl_->local) impl_->local->Write(archive, "local.");
     archive.write("requests", torch::tensor(impl_->requests, torch::kInt64));
-    const std::string tmp = path + ".tmp";
-    archive.save_to(tmp);
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-      return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
-    }
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
-  }
-  return absl::OkStatus();
+  });
 }
 
 absl::Status SfScorer::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const std::exception&) {
-    return absl::NotFoundError(absl::StrCat("no readable snapshot at '", path, "'"));
-  }
-  try {
-    c10::IValue tag;
-    archive.read("tag", tag);
-    if (!tag.isString() || tag.toStringRef() != impl_->tag) {
-      return absl::FailedPreconditionError(absl::StrCat("snapshot '", path, "' was written by '",
-                                                        tag.isString() ? tag.toStringRef() : "?",
-                                                        "', not by this configuration"));
-    }
+  return LoadArchive(path, impl_->tag, [&](torch::serialize::InputArchive& archive) {
     std::optional<SfModel> joint, local;
     if (impl_->joint) {
       joint.emplace(impl_->encoder.state_dim(), impl_->sf);
@@ -359,10 +331,7 @@ absl::Status SfScorer::Load(const std::string& path) {
     impl_->joint.swap(joint);
     impl_->local.swap(local);
     impl_->requests = requests.item<int64_t>();
-  } catch (const std::exception& e) {
-    return absl::DataLossError(absl::StrCat("snapshot '", path, "': ", e.what()));
-  }
-  return absl::OkStatus();
+  });
 }
 
 absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
@@ -370,22 +339,11 @@ absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const
   absl::MutexLock lock(&impl_->mu);
   const bool is_local = net.rfind("local_", 0) == 0;
   std::optional<SfModel>& model = is_local ? impl_->local : impl_->joint;
-  if (!model) return absl::InvalidArgumentError(absl::StrCat("no model for '", net, "' in this credit mode"));
   const std::string which = is_local ? net.substr(6) : net;
-  if (which != "phi" && which != "psi") return absl::InvalidArgumentError("net is phi or psi");
-  Mlp& mlp = which == "phi" ? model->phi : model->psi;
-  if (layer < 0 || layer >= static_cast<int>(mlp->layers().size())) return absl::InvalidArgumentError("bad layer");
-  torch::nn::Linear& linear = mlp->layers()[layer];
-  if (static_cast<int64_t>(weight.size()) != linear->weight.numel() ||
-      static_cast<int64_t>(bias.size()) != linear->bias.numel()) {
-    return absl::InvalidArgumentError(absl::StrCat("layer ", layer, " is ", linear->weight.size(0), "x",
-                                                   linear->weight.size(1)));
+  if (!model || (which != "phi" && which != "psi")) {
+    return absl::InvalidArgumentError(absl::StrCat("no net '", net, "' in this credit mode"));
   }
-  {
-    torch::NoGradGuard no_grad;
-    linear->weight.copy_(torch::tensor(weight).reshape(linear->weight.sizes()));
-    linear->bias.copy_(torch::tensor(bias));
-  }
+  IMCA_RETURN_IF_ERROR(SetLinear(which == "phi" ? model->phi : model->psi, layer, weight, bias));
   model->SyncTarget();
   return absl::OkStatus();
 }

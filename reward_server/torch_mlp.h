@@ -6,8 +6,11 @@
 #include <torch/torch.h>
 
 #include <cmath>
+#include <functional>
 #include <string>
 #include <vector>
+
+#include "absl/status/status.h"
 
 namespace imca::reward {
 
@@ -61,6 +64,19 @@ struct RunningMoments {
     count = total;
   }
 };
+
+// Writes "tag" and then whatever `fill` adds to `path` atomically (tmp file +
+// rename). Errors: INTERNAL naming the path.
+absl::Status SaveArchive(const std::string& path, const std::string& tag,
+                         const std::function<void(torch::serialize::OutputArchive&)>& fill);
+// Reads `path`, checks its "tag", then calls `read` (which may throw and
+// should swap state in only at its end). Errors: NOT_FOUND (unreadable),
+// FAILED_PRECONDITION (other tag), DATA_LOSS (missing or bad entries).
+absl::Status LoadArchive(const std::string& path, const std::string& tag,
+                         const std::function<void(torch::serialize::InputArchive&)>& read);
+// Sets layer `layer` of `mlp` to weight [out][in] and bias [out].
+// Errors: INVALID_ARGUMENT on a bad layer or shape.
+absl::Status SetLinear(Mlp& mlp, int layer, const std::vector<float>& weight, const std::vector<float>& bias);
 
 }  // namespace imca::reward
 

@@ -1,0 +1,65 @@
+#include "reward_server/torch_mlp.h"
+
+#include <cstdio>
+
+#include "absl/strings/str_cat.h"
+
+namespace imca::reward {
+
+absl::Status SaveArchive(const std::string& path, const std::string& tag,
+                         const std::function<void(torch::serialize::OutputArchive&)>& fill) {
+  try {
+    torch::serialize::OutputArchive archive;
+    archive.write("tag", c10::IValue(tag));
+    fill(archive);
+    const std::string tmp = path + ".tmp";
+    archive.save_to(tmp);
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+      return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
+    }
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status LoadArchive(const std::string& path, const std::string& tag,
+                         const std::function<void(torch::serialize::InputArchive&)>& read) {
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const std::exception&) {
+    return absl::NotFoundError(absl::StrCat("no readable snapshot at '", path, "'"));
+  }
+  try {
+    c10::IValue stored;
+    archive.read("tag", stored);
+    if (!stored.isString() || stored.toStringRef() != tag) {
+      return absl::FailedPreconditionError(absl::StrCat("snapshot '", path, "' was written by '",
+                                                        stored.isString() ? stored.toStringRef() : "?",
+                                                        "', not by this configuration"));
+    }
+    read(archive);
+  } catch (const std::exception& e) {
+    return absl::DataLossError(absl::StrCat("snapshot '", path, "': ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status SetLinear(Mlp& mlp, int layer, const std::vector<float>& weight, const std::vector<float>& bias) {
+  if (layer < 0 || layer >= static_cast<int>(mlp->layers().size())) {
+    return absl::InvalidArgumentError(absl::StrCat("no layer ", layer));
+  }
+  torch::nn::Linear& linear = mlp->layers()[layer];
+  if (static_cast<int64_t>(weight.size()) != linear->weight.numel() ||
+      static_cast<int64_t>(bias.size()) != linear->bias.numel()) {
+    return absl::InvalidArgumentError(absl::StrCat("layer ", layer, " is ", linear->weight.size(0), "x",
+                                                   linear->weight.size(1)));
+  }
+  torch::NoGradGuard no_grad;
+  linear->weight.copy_(torch::tensor(weight).reshape(linear->weight.sizes()));
+  linear->bias.copy_(torch::tensor(bias));
+  return absl::OkStatus();
+}
+
+}  // namespace imca::reward
