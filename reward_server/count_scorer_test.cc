@@ -8,6 +8,7 @@
 #include "common/env.h"
 #include "gtest/gtest.h"
 #include "reward_server/count_scorer.h"
+#include "reward_server/scorer_testing.h"
 
 namespace imca::reward {
 namespace {
@@ -26,35 +27,13 @@ class CountScorerTest : public ::testing::Test {
     scenario_ = *std::move(scenario);
   }
 
-  struct Result {
-    std::vector<float> global, contributions, shares, agent_rewards;
-  };
+  using Result = ::imca::testing::ScoredBatch;
 
   // Scores transitions given as (cells, actions, probs) with z = t = 0.
   Result Score(CountScorer& scorer, const std::vector<std::vector<int32_t>>& cells,
                const std::vector<std::vector<int32_t>>& actions,
                const std::vector<std::vector<float>>& probs, bool dry_run = false) {
-    const int64_t size = cells.size();
-    std::vector<int32_t> states, flat_actions;
-    std::vector<float> flat_probs;
-    std::vector<int64_t> episode_ids(size, 0);
-    for (int64_t i = 0; i < size; ++i) {
-      states.insert(states.end(), {0, cells[i][0], cells[i][1], 0});
-      flat_actions.insert(flat_actions.end(), actions[i].begin(), actions[i].end());
-      flat_probs.insert(flat_probs.end(), probs[i].begin(), probs[i].end());
-    }
-    Result r;
-    r.global.resize(size);
-    r.contributions.resize(size * kN);
-    r.shares.resize(size * kN);
-    r.agent_rewards.resize(size * kN);
-    TransitionBatch batch{size, size, 1, 4, states.data(), states.data(), flat_actions.data(), flat_probs.data(),
-                          episode_ids.data()};
-    EXPECT_TRUE(scorer.Score(batch, dry_run,
-                             {r.global.data(), r.contributions.data(), r.shares.data(),
-                              r.agent_rewards.data()})
-                    .ok());
-    return r;
+    return ::imca::testing::ScoreSteps(scorer, {cells, actions, probs, {}, {}}, dry_run);
   }
 
   static std::vector<float> Uniform() { return std::vector<float>(2 * kA, 0.2f); }

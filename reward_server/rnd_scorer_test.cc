@@ -2,6 +2,8 @@
 // whose weights the test sets, and the learned-model properties.
 #include "reward_server/rnd_scorer.h"
 
+#include "reward_server/scorer_testing.h"
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -17,9 +19,7 @@ namespace {
 constexpr int kN = 2;
 constexpr int kA = 5;
 
-struct Scored {
-  std::vector<float> global, contributions, shares, agent_rewards;
-};
+using Scored = ::imca::testing::ScoredBatch;
 
 class RndScorerTest : public ::testing::Test {
  protected:
@@ -31,46 +31,14 @@ class RndScorerTest : public ::testing::Test {
     scenario_ = *std::move(scenario);
   }
 
-  // Scores transitions (cells, actions, probs) with z = t = 0 as one env of T steps.
   Scored Score(RndScorer& scorer, const std::vector<std::vector<int32_t>>& cells,
                const std::vector<std::vector<int32_t>>& actions, const std::vector<std::vector<float>>& probs,
                bool dry_run) {
-    const int64_t size = cells.size();
-    std::vector<int32_t> states, flat_actions;
-    std::vector<float> flat_probs;
-    std::vector<int64_t> episode_ids(size, 0);
-    for (int64_t i = 0; i < size; ++i) {
-      states.insert(states.end(), {0, cells[i][0], cells[i][1], 0});
-      flat_actions.insert(flat_actions.end(), actions[i].begin(), actions[i].end());
-      flat_probs.insert(flat_probs.end(), probs[i].begin(), probs[i].end());
-    }
-    Scored r;
-    r.global.resize(size);
-    r.contributions.resize(size * kN);
-    r.shares.resize(size * kN);
-    r.agent_rewards.resize(size * kN);
-    TransitionBatch batch{size, size, 1, 4, states.data(), states.data(), flat_actions.data(), flat_probs.data(),
-                          episode_ids.data()};
-    EXPECT_TRUE(scorer.Score(batch, dry_run,
-                             {r.global.data(), r.contributions.data(), r.shares.data(), r.agent_rewards.data()})
-                    .ok());
-    return r;
+    return ::imca::testing::ScoreSteps(scorer, {cells, actions, probs, {}, {}}, dry_run);
   }
 
   Scored ScoreUnroll(RndScorer& scorer, const v1::Unroll& u, bool dry_run) {
-    const int64_t size = int64_t{u.length()} * u.num_envs();
-    Scored r;
-    r.global.resize(size);
-    r.contributions.resize(size * kN);
-    r.shares.resize(size * kN);
-    r.agent_rewards.resize(size * kN);
-    TransitionBatch batch{size, u.length(), u.num_envs(), u.state_size(), u.states().data(),
-                          u.next_states().data(), u.actions().data(), u.action_probs().data(),
-                          u.episode_ids().data()};
-    EXPECT_TRUE(scorer.Score(batch, dry_run,
-                             {r.global.data(), r.contributions.data(), r.shares.data(), r.agent_rewards.data()})
-                    .ok());
-    return r;
+    return ::imca::testing::ScoreUnroll(scorer, u, dry_run);
   }
 
   std::unique_ptr<RndScorer> Make(Credit credit, Permutation permutation, RndConfig rnd = {}) {

@@ -1,6 +1,8 @@
 // Successor-feature control with credit assignment (paper eq. 7, 11-13).
 #include "reward_server/sf_scorer.h"
 
+#include "reward_server/scorer_testing.h"
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -15,9 +17,7 @@ namespace {
 
 constexpr int kN = 2;
 
-struct Scored {
-  std::vector<float> global, contributions, shares, agent_rewards;
-};
+using Scored = ::imca::testing::ScoredBatch;
 
 class SfScorerTest : public ::testing::Test {
  protected:
@@ -33,27 +33,7 @@ class SfScorerTest : public ::testing::Test {
   // One env, T = transitions; cells are (agent 1, agent 2) before and after.
   Scored Score(SfScorer& scorer, const std::vector<std::vector<int32_t>>& now,
                const std::vector<std::vector<int32_t>>& next, const std::vector<bool>& terminated, bool dry_run) {
-    const int64_t size = now.size();
-    std::vector<int32_t> states, next_states, actions(size * kN, env::kStay);
-    std::vector<float> probs(size * kN * 5, 0.2f);
-    std::vector<int64_t> episode_ids(size, 7);
-    std::unique_ptr<bool[]> ended(new bool[size]);
-    for (int64_t i = 0; i < size; ++i) {
-      states.insert(states.end(), {0, now[i][0], now[i][1], 0});
-      next_states.insert(next_states.end(), {0, next[i][0], next[i][1], 1});
-      ended[i] = terminated[i];
-    }
-    Scored r;
-    r.global.resize(size);
-    r.contributions.resize(size * kN);
-    r.shares.resize(size * kN);
-    r.agent_rewards.resize(size * kN);
-    TransitionBatch batch{size, size, 1, 4, states.data(), next_states.data(), actions.data(), probs.data(),
-                          episode_ids.data(), ended.get(), 42};
-    EXPECT_TRUE(scorer.Score(batch, dry_run,
-                             {r.global.data(), r.contributions.data(), r.shares.data(), r.agent_rewards.data()})
-                    .ok());
-    return r;
+    return ::imca::testing::ScoreSteps(scorer, {now, {}, {}, next, terminated}, dry_run);
   }
 
   std::unique_ptr<SfScorer> Make(Credit credit, SfConfig sf = {}) {
