@@ -200,21 +200,37 @@ void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch
   };
   for (const v1::Unroll& u : unrolls) {
     const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
-    // Critic inputs of states [T+1][E][n] and reached states [T][E][n].
-    std::vector<float> inputs((T + 1) * M * critic_dim), final_inputs(B * critic_dim);
+    // Critic inputs of states [T+1][E][n].
+    std::vector<float> inputs((T + 1) * M * critic_dim);
     for (int64_t row = 0; row < (T + 1) * E; ++row) {
       for (int a = 0; a < n; ++a) {
         critic_input(u.states().data() + row * k, a, &inputs[(row * n + a) * critic_dim]);
       }
     }
-    for (int64_t row = 0; row < T * E; ++row) {
-      for (int a = 0; a < n; ++a) {
-        critic_input(u.next_states().data() + row * k, a, &final_inputs[(row * n + a) * critic_dim]);
-      }
-    }
     std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
     trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data());
-    trainer_->Values(final_inputs.data(), B, f_ext.data(), f_int.data());
+    // GAE reads final values only at truncated steps: evaluate just those
+    // reached states (a few per unroll, not all T*E of them).
+    std::vector<int64_t> truncated_rows;
+    for (int64_t row = 0; row < T * E; ++row) {
+      if (u.truncated(row)) truncated_rows.push_back(row);
+    }
+    if (!truncated_rows.empty()) {
+      const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
+      std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows);
+      for (size_t i = 0; i < truncated_rows.size(); ++i) {
+        for (int a = 0; a < n; ++a) {
+          critic_input(u.next_states().data() + truncated_rows[i] * k, a, &final_inputs[(i * n + a) * critic_dim]);
+        }
+      }
+      trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data());
+      for (size_t i = 0; i < truncated_rows.size(); ++i) {
+        for (int a = 0; a < n; ++a) {
+          f_ext[truncated_rows[i] * n + a] = final_ext[i * n + a];
+          f_int[truncated_rows[i] * n + a] = final_int[i * n + a];
+        }
+      }
+    }
     std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
     for (int64_t row = 0; row < T * E; ++row) {
       for (int a = 0; a < n; ++a) {

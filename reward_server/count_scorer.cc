@@ -27,17 +27,9 @@ CountScorer::CountScorer(const env::Scenario& scenario, const ScorerConfig& conf
       codec_(scenario),
       rng_(config.seed) {}
 
-void CountScorer::LookupOrder(const int32_t* state, int* order) const {
-  if (config_.permutation == Permutation::kCanonical) {
-    codec_.CanonicalOrder(state, order);
-  } else {
-    for (int a = 0; a < n_; ++a) order[a] = a;
-  }
-}
-
 uint32_t CountScorer::JointCount(const int32_t* state, const int32_t* actions) const {
   int order[env::kMaxAgents];
-  LookupOrder(state, order);
+  codec_.SlotOrder(state, config_.permutation == Permutation::kCanonical, order);
   absl::MutexLock lock(&mu_);
   return global_.Get(codec_.GlobalKey(state, actions, order));
 }
@@ -72,7 +64,7 @@ void CountScorer::ScoreOne(const int32_t* state, const int32_t* actions, const f
     }
   } else if (config_.credit != Credit::kNone) {
     int order[env::kMaxAgents];
-    LookupOrder(state, order);
+    codec_.SlotOrder(state, config_.permutation == Permutation::kCanonical, order);
     const uint64_t key = codec_.GlobalKey(state, actions, order);
     const float novelty = Novelty(global_.Get(key));
     *global = beta * novelty;
@@ -87,7 +79,10 @@ void CountScorer::ScoreOne(const int32_t* state, const int32_t* actions, const f
         double baseline = 0;
         for (int u = 0; u < num_actions_; ++u) {
           counterfactual[a] = u;
-          baseline += probs[a * num_actions_ + u] * Novelty(global_.Get(codec_.GlobalKey(state, counterfactual, order)));
+          // The taken action's pair is (S, U) itself: its novelty was read above.
+          const float n_u = u == actions[a] ? novelty
+                                            : Novelty(global_.Get(codec_.GlobalKey(state, counterfactual, order)));
+          baseline += probs[a * num_actions_ + u] * n_u;
         }
         counterfactual[a] = actions[a];
         contributions[a] = static_cast<float>(novelty - baseline);

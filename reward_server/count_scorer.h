@@ -46,7 +46,6 @@ class CountScorer final : public Scorer {
   void ScoreOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
                 float* global, float* contributions, float* shares, float* agent_rewards)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  void LookupOrder(const int32_t* state, int* order) const;
   std::string ConfigTag() const;
 
   const std::string scenario_tag_;  // Scenario name and map size, for snapshots.

@@ -70,6 +70,14 @@ void JointKeyCodec::CanonicalOrder(const int32_t* state, int* order) const {
   }
 }
 
+void JointKeyCodec::SlotOrder(const int32_t* state, bool canonical, int* order) const {
+  if (canonical) {
+    CanonicalOrder(state, order);
+  } else {
+    for (int a = 0; a < n_; ++a) order[a] = a;
+  }
+}
+
 uint64_t JointKeyCodec::LocalKey(const int32_t* state, int agent, int32_t action,
                                  bool shared_across_agents) const {
   uint64_t key = static_cast<uint64_t>(state[env::AgentIndex(agent)]) << action_bits_ |

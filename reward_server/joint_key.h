@@ -30,6 +30,9 @@ class JointKeyCodec {
   // Slot order that sorts agents by cell (cells are distinct, so the order is
   // unique and the key of a permuted joint pair is identical).
   void CanonicalOrder(const int32_t* state, int* order) const;
+  // Canonical order if `canonical`, else agent order: the slot order every
+  // lookup of a scorer uses.
+  void SlotOrder(const int32_t* state, bool canonical, int* order) const;
   // Key of agent `agent`'s local pair (cell, action); includes the agent id
   // unless `shared_across_agents`.
   uint64_t LocalKey(const int32_t* state, int agent, int32_t action, bool shared_across_agents) const;

@@ -139,14 +139,6 @@ struct RndScorer::Impl {
     }
   }
 
-  void Order(const int32_t* state, int* order) const {
-    if (config.permutation == Permutation::kCanonical) {
-      codec.CanonicalOrder(state, order);
-    } else {
-      for (int a = 0; a < n; ++a) order[a] = a;
-    }
-  }
-
   void ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
   void ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out)
@@ -179,7 +171,7 @@ void RndScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, con
   for (int64_t i = 0; i < N; ++i) {
     const int32_t* state = batch.states + i * stride;
     int* order = &orders[i * n];
-    Order(state, order);
+    codec.SlotOrder(state, config.permutation == Permutation::kCanonical, order);
     encoder.EncodeJoint(state, batch.actions + i * n, order, x + i * D);
   }
   if (imca) {
