@@ -148,6 +148,8 @@ absl::Status Actor::Score(v1::Unroll* unroll) {
   if (!status.ok()) return FromGrpcStatus(status);
   *unroll->mutable_intrinsic_rewards() = std::move(*response.mutable_agent_rewards());
   *unroll->mutable_credit_shares() = std::move(*response.mutable_shares());
+  *unroll->mutable_global_rewards() = std::move(*response.mutable_global_rewards());
+  *unroll->mutable_contributions() = std::move(*response.mutable_contributions());
   return absl::OkStatus();
 }
 

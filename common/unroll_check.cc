@@ -124,6 +124,14 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
     if (u.credit_shares_size() != 0) {
       IMCA_RETURN_IF_ERROR(CheckSize(u.credit_shares(), "credit_shares", transitions * n));
     }
+    if (u.global_rewards_size() != 0) {
+      IMCA_RETURN_IF_ERROR(CheckSize(u.global_rewards(), "global_rewards", transitions));
+      IMCA_RETURN_IF_ERROR(CheckFinite(u.global_rewards(), "global_rewards"));
+    }
+    if (u.contributions_size() != 0) {
+      IMCA_RETURN_IF_ERROR(CheckSize(u.contributions(), "contributions", transitions * n));
+      IMCA_RETURN_IF_ERROR(CheckFinite(u.contributions(), "contributions"));
+    }
   }
   return absl::OkStatus();
 }

@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 constexpr char kMetricsHeader[] =
     "iteration,env_steps,wall_seconds,env_steps_per_sec,success_rate,train_success_rate,"
     "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
-    "policy_loss,value_loss,entropy,approx_kl,clip_fraction\n";
+    "policy_loss,value_loss,entropy,approx_kl,clip_fraction,global_reward,contribution_abs";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -270,9 +270,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   IMCA_ASSIGN_OR_RETURN(PpoStats stats, trainer_->Train(batch));
   ++iteration_;
   int64_t steps = 0;
-  double lag = 0, intrinsic = 0, share_max = 0;
-  int64_t shares = 0;
-  const int n = scenario_->num_agents();
+  double lag = 0;
   int64_t version;
   {
     absl::MutexLock lock(&mu_);
@@ -281,22 +279,44 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   for (const v1::Unroll& u : unrolls) {
     steps += Steps(u);
     lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
-    for (float r : u.intrinsic_rewards()) intrinsic += r;
-    for (int64_t i = 0; i + n <= u.credit_shares_size(); i += n) {
-      share_max += *std::max_element(u.credit_shares().begin() + i, u.credit_shares().begin() + i + n);
-      ++shares;
-    }
   }
-  intrinsic /= static_cast<double>(batch.size);
-  if (shares > 0) share_max /= shares;
+  const CreditStats credit = MeasureCredit(unrolls, batch.size);
   {
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
-    last_intrinsic_ = intrinsic;
+    last_intrinsic_ = credit.intrinsic;
   }
   Publish();
-  WriteMetricsRow(stats, lag, intrinsic, share_max);
+  WriteMetricsRow(stats, lag, credit);
   return absl::OkStatus();
+}
+
+Learner::CreditStats Learner::MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const {
+  const int n = scenario_->num_agents();
+  CreditStats c;
+  c.shares.assign(n, 0.0);
+  int64_t shared_rows = 0, global_rows = 0, contribution_values = 0;
+  for (const v1::Unroll& u : unrolls) {
+    for (float r : u.intrinsic_rewards()) c.intrinsic += r;
+    for (int64_t i = 0; i + n <= u.credit_shares_size(); i += n) {
+      const float* row = u.credit_shares().data() + i;
+      c.share_max += *std::max_element(row, row + n);
+      for (int a = 0; a < n; ++a) c.shares[a] += row[a];
+      ++shared_rows;
+    }
+    for (float r : u.global_rewards()) c.global_reward += r;
+    global_rows += u.global_rewards_size();
+    for (float r : u.contributions()) c.contribution_abs += std::abs(r);
+    contribution_values += u.contributions_size();
+  }
+  if (agent_steps > 0) c.intrinsic /= static_cast<double>(agent_steps);
+  if (shared_rows > 0) {
+    c.share_max /= shared_rows;
+    for (double& p : c.shares) p /= shared_rows;
+  }
+  if (global_rows > 0) c.global_reward /= global_rows;
+  if (contribution_values > 0) c.contribution_abs /= contribution_values;
+  return c;
 }
 
 void Learner::Publish() {
@@ -305,13 +325,17 @@ void Learner::Publish() {
   policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
 }
 
-void Learner::WriteMetricsRow(const PpoStats& stats, double lag, double intrinsic, double share_max) {
+void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit) {
   if (config_.run_dir.empty()) return;
   if (!metrics_.is_open()) {
     const std::string path = (fs::path(config_.run_dir) / "metrics.csv").string();
     const bool fresh = !fs::exists(path) || fs::file_size(path) == 0;
     metrics_.open(path, std::ios::app);
-    if (fresh) metrics_ << kMetricsHeader;
+    if (fresh) {
+      metrics_ << kMetricsHeader;
+      for (int a = 1; a <= scenario_->num_agents(); ++a) metrics_ << ",share_" << a;
+      metrics_ << "\n";
+    }
   }
   const v1::LearnerStatus s = Status();
   double train_success;
@@ -319,11 +343,15 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, double intrinsi
     absl::MutexLock lock(&mu_);
     train_success = Mean(train_success_);
   }
-  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f\n",
+  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g,%.6g",
                               iteration_, s.env_steps(), s.wall_seconds(), s.env_steps_per_sec(),
-                              s.success_rate(), train_success, s.episode_return(), intrinsic, share_max,
+                              s.success_rate(), train_success, s.episode_return(), credit.intrinsic,
+                              credit.share_max,
                               s.policy_version(), lag, s.unrolls_dropped_stale(), stats.policy_loss,
-                              stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction);
+                              stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction,
+                              credit.global_reward, credit.contribution_abs);
+  for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
+  metrics_ << "\n";
   metrics_.flush();
 }
 

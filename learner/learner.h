@@ -84,7 +84,16 @@ class Learner {
   absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
   void BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch);
   void Publish();
-  void WriteMetricsRow(const PpoStats& stats, double lag, double intrinsic, double share_max);
+  // Means over one batch of the reward server's credit diagnostics.
+  struct CreditStats {
+    double intrinsic = 0;         // r_i^a per agent-step.
+    double share_max = 0;         // max_a p^a per transition.
+    double global_reward = 0;     // R_i per transition.
+    double contribution_abs = 0;  // |r^a| (or d^a) per agent-step.
+    std::vector<double> shares;   // p^a per agent slot.
+  };
+  CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
+  void WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit);
 
   const env::Scenario* scenario_;
   const LearnerConfig config_;

@@ -1,5 +1,6 @@
 #include "learner/learner.h"
 
+#include <cmath>
 #include <filesystem>
 #include <thread>
 
@@ -50,11 +51,17 @@ TEST_F(LearnerTest, RejectsBadUnrollsWithTheFieldName) {
   bad = Unroll(0, 1);
   bad.set_behaviour_log_probs(0, 0.5f);
   EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.behaviour_log_probs[0]"));
+  bad = Unroll(0, 1);
+  bad.add_global_rewards(0.5f);  // Diagnostics are optional, but sized when present.
+  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.global_rewards"));
+  bad = Unroll(0, 1);
+  bad.mutable_contributions()->Resize(bad.intrinsic_rewards_size(), std::nanf(""));
+  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.contributions"));
   bad = Unroll(7, 1);  // Ahead of the learner (it resumed from an older checkpoint): retryable.
   status = (*learner)->Push(bad);
   EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(status.message(), HasSubstr("ahead: unroll.policy_version"));
-  EXPECT_EQ((*learner)->Status().unrolls_rejected(), 3);
+  EXPECT_EQ((*learner)->Status().unrolls_rejected(), 5);
   EXPECT_EQ((*learner)->Status().unrolls_received(), 0);
 }
 

@@ -3,10 +3,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/test_unrolls.h"
@@ -130,6 +133,16 @@ TEST(IntegrationTest, ThreeServicesTrainAndStopCleanly) {
   std::getline(metrics, header);
   while (std::getline(metrics, row)) last = row;
   ASSERT_FALSE(last.empty());
+  const std::vector<std::string> names = absl::StrSplit(header, ',');
+  const std::vector<std::string> values = absl::StrSplit(last, ',');
+  ASSERT_EQ(names.size(), values.size()) << header << "\n" << last;
+  std::map<std::string, double> column;
+  for (size_t i = 0; i < names.size(); ++i) ASSERT_TRUE(absl::SimpleAtod(values[i], &column[names[i]])) << names[i];
+  EXPECT_GT(column["intrinsic_reward"], 0);
+  EXPECT_GT(column["global_reward"], 0);
+  EXPECT_GT(column["contribution_abs"], 0);
+  EXPECT_GE(column["share_max"], 0.5);
+  EXPECT_NEAR(column["share_1"] + column["share_2"], 1.0, 2e-4);
 
   for (auto& actor : actors) {
     actor->Signal(SIGTERM);
@@ -242,7 +255,9 @@ TEST_P(LearnedRewardTest, ServerCreditsLearnedNoveltyAndSnapshots) {
     EXPECT_NEAR(shares, 1.0f, 1e-5);
     // RND splits R_i exactly; SF also divides by sqrt(N_ep) >= 1.
     EXPECT_LE(sum, r.global_rewards(i) * (1 + 1e-4f) + 1e-6f);
-    if (kind == "rnd") EXPECT_NEAR(sum, r.global_rewards(i), 1e-4 * r.global_rewards(i) + 1e-6);
+    if (kind == "rnd") {
+      EXPECT_NEAR(sum, r.global_rewards(i), 1e-4 * r.global_rewards(i) + 1e-6);
+    }
   }
   EXPECT_GT(positive, r.num_transitions() / 2);
   server.Signal(SIGTERM);

@@ -5,8 +5,9 @@ speed  component ceilings (bench_speed) and end-to-end training throughput,
        with the ratio end-to-end / learner-only.
 env    joint env steps/s of every scenario on one core (vectorised).
 reward Score throughput for count, rnd, sf with 2 and 4 agents; counterfactual share.
-learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds on
-       the default coop_nav map; final success rate and env steps to 90%.
+learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds
+       (--scenario, --reward; further training flags after --); final success
+       rate, env steps to 80% and 90%, and imca's credit diagnostics.
 """
 import argparse
 import csv
@@ -73,6 +74,12 @@ def reward_bench(args, base):
         sys.exit(f"imca bench: bench_reward failed: {r.stderr.strip()}")
 
 
+def tail_mean(rows, key, fraction=0.25):
+    """Mean of a metrics column over the last quarter of a run (None if absent)."""
+    values = [float(r[key]) for r in rows[-max(1, int(len(rows) * fraction)):] if r.get(key) not in (None, "")]
+    return statistics.mean(values) if values else None
+
+
 def learn(args, base):
     modes = args.credits.split(",")
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -80,20 +87,28 @@ def learn(args, base):
     for credit in modes:
         for seed in seeds:
             out = os.path.join(base, f"{credit}-seed{seed}")
-            summary, _ = train(out, ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
-                                     "--seed", str(seed), "--steps", str(args.steps)])
-            results[(credit, seed)] = summary
+            summary, rows = train(out, ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
+                                        "--seed", str(seed), "--steps", str(args.steps)] + args.extra)
+            results[(credit, seed)] = (summary, rows)
             print(f"{credit:12s} seed {seed}: final success {summary['final_success_rate']:.1%}, "
                   f"steps to 80% {summary['steps_to_80pct_success']}, to 90% {summary['steps_to_90pct_success']}, "
                   f"{summary['env_steps_per_sec']:.0f} steps/s", flush=True)
-    print()
-    print("| credit | final success (per seed) | mean | env steps to 90% (per seed) |")
-    print("|---|---|---|---|")
+    steps = lambda xs: " / ".join("-" if x is None else f"{x / 1e6:.2f}M" for x in xs)
+    print(f"\n{args.scenario} + {args.reward}, {args.steps:,} env steps, seeds {args.seeds}"
+          + (f", flags {' '.join(args.extra)}" if args.extra else ""))
+    print("| credit | final success (per seed) | mean | env steps to 80% | env steps to 90% "
+          "| last-quarter mean: R_i, abs r^a, max p^a |")
+    print("|---|---|---|---|---|---|")
     for credit in modes:
-        finals = [results[(credit, s)]["final_success_rate"] for s in seeds]
-        to90 = [results[(credit, s)]["steps_to_90pct_success"] for s in seeds]
+        runs = [results[(credit, s)] for s in seeds]
+        finals = [summary["final_success_rate"] for summary, _ in runs]
+        diag = []
+        for key in ("global_reward", "contribution_abs", "share_max"):
+            values = [tail_mean(rows, key) for _, rows in runs]
+            diag.append("-" if None in values else f"{statistics.mean(values):.4g}")
         print(f"| {credit} | {' / '.join(f'{x:.0%}' for x in finals)} | {statistics.mean(finals):.0%} | "
-              f"{' / '.join('-' if x is None else f'{x:,}' for x in to90)} |")
+              f"{steps(summary['steps_to_80pct_success'] for summary, _ in runs)} | "
+              f"{steps(summary['steps_to_90pct_success'] for summary, _ in runs)} | {', '.join(diag)} |")
     print(f"\nrun folders: {base}")
 
 
@@ -115,7 +130,10 @@ def main(argv):
     l.add_argument("--steps", type=int, default=2_000_000)
     l.add_argument("--scenario", default="coop_nav")
     l.add_argument("--reward", default="count")
+    l.add_argument("extra", nargs="*", help="after --: more ./imca train flags, e.g. -- --beta 0.1")
     args = p.parse_args(argv)
+    if args.what != "learn":
+        args.extra = []
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     base = os.path.join(ROOT, "runs", f"bench-{args.what}-"
                         + (f"{args.scenario}-{args.reward}-" if args.what == "learn" else "") + stamp)
