@@ -46,6 +46,40 @@ struct Model {
     return (target->forward(x) - predictor->forward(x)).pow(2).mean(1);
   }
 
+  // Novelty of every counterfactual row without building it. Row (i, s, u) is
+  // the taken row i (normalised, x [N][D]) with the action block of slot s
+  // set to action u; the blocks start at `action_offset`, A columns each, and
+  // `taken` [N][n] (int64) holds the slot actions of the rows. Normalisation
+  // is per column, so a row differs from the taken one only in that block, and
+  // the first layer's pre-activation is h(x) - W_s v(taken) + W_s v(u), with
+  // v(u) the normalised one-hot. Returns [N][n][A].
+  torch::Tensor CounterfactualNovelty(const torch::Tensor& x, const torch::Tensor& taken, int64_t action_offset,
+                                      int64_t n, int64_t A) {
+    torch::NoGradGuard no_grad;
+    const int64_t N = x.size(0);
+    // v [n][A][A]: the normalised one-hot of action u in slot s's columns.
+    torch::Tensor v = torch::eye(A, torch::kFloat32).unsqueeze(0).expand({n, A, A}).contiguous();
+    if (normalize) {
+      const auto cols = torch::indexing::Slice(action_offset, action_offset + n * A);
+      const torch::Tensor mean = obs.mean.index({cols}).to(torch::kFloat32).view({n, 1, A});
+      const torch::Tensor std = torch::sqrt(obs.var.index({cols}).to(torch::kFloat32) + kEps).view({n, 1, A});
+      v = ((v - mean) / std).clamp(-5.0, 5.0);
+    }
+    const torch::Tensor slots = torch::arange(n, torch::kInt64).unsqueeze(0).expand({N, n});
+    auto embed = [&](Mlp& net) {
+      auto& layers = net->layers();
+      const torch::Tensor& w = layers[0]->weight;  // [H][D]
+      // c [n][A][H]: the first layer's response to slot s taking action u.
+      const torch::Tensor c = torch::matmul(v, w.narrow(1, action_offset, n * A).reshape({-1, n, A}).permute({1, 2, 0}));
+      const torch::Tensor h = layers[0]->forward(x);                       // [N][H]
+      const torch::Tensor c_taken = c.index({slots, taken});                // [N][n][H]
+      torch::Tensor z = h.view({N, 1, 1, -1}) + c.unsqueeze(0) - c_taken.unsqueeze(2);  // [N][n][A][H]
+      for (size_t l = 1; l < layers.size(); ++l) z = layers[l]->forward(torch::relu(z));
+      return z;
+    };
+    return (embed(target) - embed(predictor)).pow(2).mean(-1);
+  }
+
   double RewardStd() const { return normalize ? std::sqrt(ret.var.item<double>() + kEps) : 1.0; }
 
   void Train(const torch::Tensor& x) {
@@ -161,44 +195,40 @@ struct RndScorer::Impl {
 };
 
 void RndScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
-  const int64_t N = batch.size, D = encoder.joint_dim();
+  const int64_t N = batch.size, D = encoder.joint_dim(), A = num_actions;
   const bool imca = config.credit == Credit::kImca;
-  const int64_t rows = imca ? N * (1 + n * num_actions) : N;
-  torch::Tensor inputs = torch::empty({rows, D}, torch::kFloat32);
+  torch::Tensor inputs = torch::empty({N, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   std::vector<int> orders(N * n);
+  // slot_of[i*n + a]: agent a's slot in row i; taken[i][s]: the action in slot s.
+  std::vector<int> slot_of(imca ? N * n : 0);
+  torch::Tensor taken = imca ? torch::empty({N, n}, torch::kInt64) : torch::Tensor();
   const int64_t stride = batch.state_size;
   for (int64_t i = 0; i < N; ++i) {
     const int32_t* state = batch.states + i * stride;
     int* order = &orders[i * n];
     codec.SlotOrder(state, config.permutation == Permutation::kCanonical, order);
     encoder.EncodeJoint(state, batch.actions + i * n, order, x + i * D);
-  }
-  if (imca) {
-    // Counterfactual rows: transition i, agent a, action u at N + (i*n + a)*A + u.
-    for (int64_t i = 0; i < N; ++i) {
-      const int* order = &orders[i * n];
-      for (int slot = 0; slot < n; ++slot) {
-        const int a = order[slot];
-        for (int u = 0; u < num_actions; ++u) {
-          float* row = x + (N + (i * n + a) * num_actions + u) * D;
-          std::copy(x + i * D, x + (i + 1) * D, row);
-          float* action_block = row + encoder.state_dim() + slot * num_actions;
-          std::fill(action_block, action_block + num_actions, 0.0f);
-          action_block[u] = 1.0f;
-        }
-      }
+    if (!imca) continue;
+    int64_t* t = taken.data_ptr<int64_t>() + i * n;
+    for (int slot = 0; slot < n; ++slot) {
+      slot_of[i * n + order[slot]] = slot;
+      t[slot] = batch.actions[i * n + order[slot]];
     }
   }
   Model& model = *joint;
-  const torch::Tensor taken = inputs.narrow(0, 0, N);
-  if (!dry_run && model.normalize) model.obs.Update(taken);
-  const torch::Tensor novelty = model.Novelty(model.Normalize(inputs));
+  if (!dry_run && model.normalize) model.obs.Update(inputs);
+  const torch::Tensor normalized = model.Normalize(inputs);
+  const torch::Tensor novelty = model.Novelty(normalized);
   if (!dry_run && model.normalize) {
-    model.ret.Update(StreamReturns(novelty.narrow(0, 0, N), batch.length, batch.num_envs, 1, rnd.gamma));
+    model.ret.Update(StreamReturns(novelty, batch.length, batch.num_envs, 1, rnd.gamma));
   }
-  const torch::Tensor scaled = (novelty / model.RewardStd()).contiguous();
+  const double std = model.RewardStd();
+  const torch::Tensor scaled = (novelty / std).contiguous();
   const float* nov = scaled.data_ptr<float>();
+  // Counterfactual novelties [N][n slots][A], scaled like the bonus (SPEC 5).
+  torch::Tensor cf;
+  if (imca) cf = (model.CounterfactualNovelty(normalized, taken, encoder.state_dim(), n, A) / std).contiguous();
   const float beta = static_cast<float>(config.beta);
   for (int64_t i = 0; i < N; ++i) {
     out.global_rewards[i] = beta * nov[i];
@@ -215,14 +245,15 @@ void RndScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, con
     }
     for (int a = 0; a < n; ++a) {
       double baseline = 0;
-      const float* probs = batch.action_probs + (i * n + a) * num_actions;
-      for (int u = 0; u < num_actions; ++u) baseline += probs[u] * nov[N + (i * n + a) * num_actions + u];
+      const float* probs = batch.action_probs + (i * n + a) * A;
+      const float* counterfactual = cf.data_ptr<float>() + (i * n + slot_of[i * n + a]) * A;
+      for (int u = 0; u < A; ++u) baseline += probs[u] * counterfactual[u];
       contributions[a] = static_cast<float>(nov[i] - baseline);
     }
     SoftmaxShares(contributions, n, config.temperature, shares);
     for (int a = 0; a < n; ++a) rewards[a] = shares[a] * out.global_rewards[i];
   }
-  if (!dry_run) TrainJoint(batch, taken);
+  if (!dry_run) TrainJoint(batch, inputs);
 }
 
 void RndScorer::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {

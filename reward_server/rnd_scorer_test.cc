@@ -83,6 +83,32 @@ TEST_F(RndScorerTest, CounterfactualCreditMatchesHandWorkedNumbers) {
   ASSERT_FALSE(scorer->SetLinearForTest("target", 0, {1.0f}, {0.0f}).ok());
 }
 
+TEST_F(RndScorerTest, CounterfactualsOfADeepNormalisedModelEqualScoringTheAlternatives) {
+  // The scorer computes counterfactual rows from the taken row's first layer;
+  // scoring each alternative joint action as a transition of its own must give
+  // the same novelties (eq. 9), for either slot order.
+  for (Permutation permutation : {Permutation::kOff, Permutation::kCanonical}) {
+    auto scorer = Make(Credit::kImca, permutation);
+    for (int i = 0; i < 20; ++i) ScoreUnroll(*scorer, testing::RandomUnroll(*scenario_, 8, 4, 11 + i), false);
+    const std::vector<float> probs = {0.1f, 0.2f, 0.3f, 0.2f, 0.2f, 0.4f, 0.1f, 0.1f, 0.2f, 0.2f};
+    const std::vector<int32_t> taken = {2, 1};
+    // Agent 2 stands left of agent 1: the canonical order swaps their slots.
+    const std::vector<int32_t> cells = {4, 0};
+    const Scored r = Score(*scorer, {cells}, {taken}, {probs}, true);
+    ASSERT_GT(r.global[0], 0.0f);
+    for (int a = 0; a < kN; ++a) {
+      double baseline = 0;
+      for (int u = 0; u < kA; ++u) {
+        std::vector<int32_t> actions = taken;
+        actions[a] = u;
+        baseline += probs[a * kA + u] * Score(*scorer, {cells}, {actions}, {probs}, true).global[0];
+      }
+      EXPECT_NEAR(r.contributions[a], r.global[0] - baseline, 1e-4 * r.global[0])
+          << "agent " << a << " permutation " << PermutationName(permutation);
+    }
+  }
+}
+
 TEST_F(RndScorerTest, BonusOfARepeatedlyScoredStateFalls) {
   RndConfig rnd;
   rnd.normalize = false;
