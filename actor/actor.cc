@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "common/grpc_util.h"
 
 namespace imca::actor {
@@ -208,6 +210,13 @@ absl::Status Actor::Run() {
     unroll.Clear();
     Rollout(&unroll);
     absl::Status status = Score(&unroll);
+    if (!config_.trace_file.empty()) {
+      if (status.ok()) {
+        Trace(unroll);
+      } else {
+        trace_gap_ = true;  // Env 0's episode lost these steps.
+      }
+    }
     if (status.ok()) status = Push(&unroll);
     if (status.ok()) {
       ++unrolls_pushed_;
@@ -227,7 +236,57 @@ absl::Status Actor::Run() {
     if (!policy_error_.ok()) return policy_error_;
   }
   CloseStream();
+  if (!config_.trace_file.empty()) WriteTrace();
   return absl::OkStatus();
+}
+
+void Actor::Trace(const v1::Unroll& u) {
+  const int E = u.num_envs(), n = u.num_agents(), k = u.state_size();
+  const bool diagnostics = u.contributions_size() == u.intrinsic_rewards_size() &&
+                           u.global_rewards_size() * n == u.intrinsic_rewards_size() &&
+                           u.credit_shares_size() == u.intrinsic_rewards_size();
+  for (int t = 0; t < u.length(); ++t) {
+    const int64_t i = int64_t{t} * E;  // Env 0 of step t.
+    const int32_t* state = u.states().data() + i * k;
+    const int32_t* next = u.next_states().data() + i * k;
+    const int step = state[k - 1];  // The state's last entry is the episode's step count.
+    if (step == 0) {
+      trace_current_.clear();
+      trace_gap_ = false;
+    }
+    for (int a = 0; a < n; ++a) {
+      const int64_t j = i * n + a;
+      absl::StrAppendFormat(&trace_current_, "%d,%d,%d,%d,%d,%d,%.6g,%.6g,%.6g,%.6g\n", u.episode_ids(i), step, a,
+                            state[env::AgentIndex(a)], next[env::AgentIndex(a)], u.actions(j),
+                            diagnostics ? u.credit_shares(j) : 0.0f, diagnostics ? u.contributions(j) : 0.0f,
+                            u.intrinsic_rewards(j), diagnostics ? u.global_rewards(i) : 0.0f);
+    }
+    if (u.terminated(i) || u.truncated(i)) {
+      if (!trace_gap_) trace_last_.swap(trace_current_);
+      trace_current_.clear();
+      trace_gap_ = false;
+    }
+  }
+  if (!trace_last_.empty() && std::chrono::steady_clock::now() - trace_written_ >= config_.trace_period) {
+    WriteTrace();
+  }
+}
+
+void Actor::WriteTrace() {
+  trace_written_ = std::chrono::steady_clock::now();
+  if (trace_last_.empty()) return;
+  const std::string tmp = config_.trace_file + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << "episode,t,agent,cell,next_cell,action,share,contribution,agent_reward,global_reward\n" << trace_last_;
+    if (!out.good()) {
+      std::fprintf(stderr, "%s: cannot write %s\n", config_.actor_id.c_str(), tmp.c_str());
+      return;
+    }
+  }
+  if (std::rename(tmp.c_str(), config_.trace_file.c_str()) != 0) {
+    std::fprintf(stderr, "%s: cannot rename %s\n", config_.actor_id.c_str(), tmp.c_str());
+  }
 }
 
 }  // namespace imca::actor

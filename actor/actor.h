@@ -29,6 +29,12 @@ struct ActorConfig {
   uint64_t seed = 1;
   std::chrono::milliseconds rpc_timeout{10000};
   int unrolls_per_stream = 256;  // PushUnrolls streams are reopened after this many.
+  // If set, the newest finished training episode of env 0 with its credit
+  // (one CSV row per step and agent: episode, t, agent, cell, next_cell,
+  // action, share, contribution, agent_reward, global_reward) is written here,
+  // atomically, at most every trace_period and when Run() returns.
+  std::string trace_file;
+  std::chrono::seconds trace_period{10};
 };
 
 // Steps vectorised environments with a local copy of the newest policy, gets
@@ -60,6 +66,9 @@ class Actor {
   absl::Status Push(v1::Unroll* unroll);
   void CloseStream();
   bool LearnerDone();
+  // Appends env 0's scored steps of `unroll` to the episode trace.
+  void Trace(const v1::Unroll& unroll);
+  void WriteTrace();
 
   const env::Scenario* scenario_;
   const ActorConfig config_;
@@ -87,6 +96,13 @@ class Actor {
   std::unique_ptr<bool[]> terminated_;
   std::unique_ptr<bool[]> truncated_;
   std::vector<env::EpisodeEnd> finished_;
+
+  // Episode trace (trace_file): CSV rows of env 0's current episode, of the
+  // last finished one, and whether the current one lost an unroll.
+  std::string trace_current_;
+  std::string trace_last_;
+  bool trace_gap_ = false;
+  std::chrono::steady_clock::time_point trace_written_{};
 };
 
 }  // namespace imca::actor

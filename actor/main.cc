@@ -21,6 +21,8 @@ ABSL_FLAG(int, eval_envs, 2, "evaluation environments (same policy, not trained 
 ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and pid)");
 ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
 ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
+ABSL_FLAG(std::string, trace_file, "",
+          "if set, write env 0's newest finished training episode with its credit shares here (CSV)");
 
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA actor: steps environments and streams unrolls");
@@ -51,6 +53,7 @@ int main(int argc, char** argv) {
                   (static_cast<uint64_t>(getpid()) << 32);
   }
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
+  config.trace_file = absl::GetFlag(FLAGS_trace_file);
   if (config.num_envs < 1) return fail("--envs must be >= 1");
   if (config.unroll_length < 1) return fail("--unroll_length must be >= 1");
   if (config.eval_envs < 0) return fail("--eval_envs must be >= 0");

@@ -291,7 +291,8 @@ def run(args):
                 os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port}",
                 f"--reward_server=127.0.0.1:{reward_port}", *scenario_flags,
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
-                f"--seed={args.seed * 1000 + i + 1}", f"--actor_id={name}"])
+                f"--seed={args.seed * 1000 + i + 1}", f"--actor_id={name}"]
+                + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else []))
         tty = sys.stderr.isatty()
         last_print = 0.0
         while ln.poll() is None:

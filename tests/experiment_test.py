@@ -1,0 +1,104 @@
+#!/usr/bin/python3
+"""./imca experiment (tools/experiment.py) against the real binaries."""
+import csv
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+EXPERIMENT = [sys.executable, os.path.join(ROOT, "tools", "experiment.py")]
+SMALL = {"actors": 1, "envs-per-actor": 8, "unroll-length": 32, "batch-steps": 1024}
+FLAGS_DIGEST = "f" + hashlib.sha1(json.dumps(SMALL, sort_keys=True).encode()).hexdigest()[:8]
+
+
+def grid_file(directory, entries, name="tiny"):
+    path = os.path.join(directory, "grid.json")
+    with open(path, "w") as f:
+        json.dump({"name": name, "entries": entries}, f)
+    return path
+
+
+class ExperimentErrorsTest(unittest.TestCase):
+    def check_one_line(self, entries, *words):
+        with tempfile.TemporaryDirectory() as tmp:
+            r = subprocess.run(EXPERIMENT + ["--grid", grid_file(tmp, entries), "--out", os.path.join(tmp, "out")],
+                               capture_output=True, text=True, timeout=60)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            for word in words:
+                self.assertIn(word, r.stderr)
+            self.assertFalse(os.path.exists(os.path.join(tmp, "out", "cells")), "nothing may run")
+
+    def test_bad_grids_are_one_line_errors_naming_the_key(self):
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": ["shared", "imcaa"]}],
+                            "entry 0", "credit 'imcaa'")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count"}], "missing 'credit'")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca", "steps": 0}], "steps")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca", "sed": 1}],
+                            "unknown key 'sed'")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca",
+                              "flags": {"temperature": 0}}], "--temperature")
+
+    def test_unreadable_grid_names_the_flag(self):
+        r = subprocess.run(EXPERIMENT + ["--grid", "/nonexistent/grid.json"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--grid", r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+
+
+class ExperimentRunTest(unittest.TestCase):
+    def test_runs_resumes_after_ctrl_c_and_reports(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            entries = [{"scenario": "coop_nav", "reward": "count", "credit": ["shared", "imca"], "seed": 1,
+                        "steps": 16000, "flags": SMALL}]
+            out = os.path.join(tmp, "out")
+            argv = EXPERIMENT + ["--grid", grid_file(tmp, entries), "--out", out, "--jobs", "1"]
+            first_cell = os.path.join(out, "cells", "coop_nav-count-shared-off-s1-16k-" + FLAGS_DIGEST, "summary.json")
+            proc = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
+            deadline = time.time() + 240
+            while not os.path.exists(first_cell) and time.time() < deadline and proc.poll() is None:
+                time.sleep(0.05)
+            self.assertTrue(os.path.exists(first_cell), "the first cell never finished")
+            time.sleep(0.5)  # The second cell is starting or running.
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=240)
+            if proc.returncode == 0:
+                self.skipTest("the second cell finished before the interrupt")  # Too fast to interrupt.
+            self.assertEqual(proc.returncode, 130, err)
+            self.assertIn("the same command resumes", err)
+
+            r = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertIn("2 cells, 1 already finished, 1 to run", r.stderr)
+            with open(os.path.join(out, "runs.csv")) as f:
+                runs = list(csv.DictReader(f))
+            self.assertEqual([row["finished"] for row in runs], ["True", "True"])
+            with open(os.path.join(out, "table.md")) as f:
+                table = f.read()
+            self.assertIn("| coop_nav | count | shared | 1/1 |", table)
+            self.assertIn("| coop_nav | count | imca | 1/1 |", table)
+            for name in ["table.csv", "curves-coop_nav-count.png", "shares-coop_nav-count.png",
+                         "gifs/coop_nav-count-imca.gif", "grid.json"]:
+                self.assertTrue(os.path.exists(os.path.join(out, name)), name)
+            trace = os.path.join(out, "cells", "coop_nav-count-imca-off-s1-16k-" + FLAGS_DIGEST, "credit_trace.csv")
+            with open(trace) as f:
+                rows = list(csv.DictReader(f))
+            self.assertGreater(len(rows), 0)
+            self.assertEqual({row["agent"] for row in rows}, {"0", "1"})
+            for t in {row["t"] for row in rows}:
+                shares = [float(row["share"]) for row in rows if row["t"] == t]
+                self.assertAlmostEqual(sum(shares), 1.0, places=4)
+
+            r = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertIn("2 cells, 2 already finished, 0 to run", r.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main()

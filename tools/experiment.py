@@ -1,0 +1,359 @@
+#!/usr/bin/python3
+"""./imca experiment: a grid of training runs, resumable, with tables and plots.
+
+  ./imca experiment --preset paper|edti|quick [--out DIR] [--jobs N]
+  ./imca experiment --grid FILE.json [--out DIR] [--jobs N]
+  ./imca experiment --report DIR        (tables and plots of what DIR holds)
+
+Every cell (scenario x reward x credit x permutation x seed x budget) is one
+`./imca train` run through the real services, in DIR/cells/<cell>/. A cell
+whose summary.json says it reached its budget is skipped, so running the same
+command again after Ctrl-C or a crash resumes; an unfinished cell starts over
+(each cell is one uninterrupted run). Results: DIR/table.md, DIR/table.csv,
+DIR/runs.csv, DIR/curves-<scenario>.png, DIR/shares-<scenario>.png,
+DIR/gifs/<scenario>-<method>.gif. See docs/experiments.md.
+"""
+import argparse
+import contextlib
+import hashlib
+import io
+import itertools
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+import launch  # noqa: E402  (flag vocabulary and validation of ./imca train)
+
+# Keys of a grid entry that may hold a list (expanded as a product) and the
+# ./imca train flag each becomes. Anything else under "flags" is passed as is.
+AXES = {"scenario": "--scenario", "reward": "--reward", "credit": "--credit", "permutation": "--permutation",
+        "seed": "--seed", "steps": "--steps"}
+IMCA_PERMUTATIONS = ["off", "random", "canonical"]
+BASELINES = ["none", "independent", "shared"]
+
+
+def pairing(scenario, reward, steps, seeds):
+    """The paper's methods on one scenario: three baselines, imca x permutations.
+    SF's joint input is not permuted (SPEC 5: permutations apply to count and
+    RND), so its imca runs only with permutation off."""
+    return [{"scenario": scenario, "reward": reward, "credit": BASELINES, "permutation": "off",
+             "seed": seeds, "steps": steps},
+            {"scenario": scenario, "reward": reward, "credit": "imca",
+             "permutation": "off" if reward == "sf" else IMCA_PERMUTATIONS, "seed": seeds, "steps": steps}]
+
+
+PRESETS = {
+    "paper": {
+        "description": "the paper's comparison: coop_nav + count, predator_prey + RND, multi_room + SF; "
+                       "credit none/independent/shared/imca, imca with permutation off/random/canonical; 5 seeds",
+        "entries": pairing("coop_nav", "count", 2_000_000, [1, 2, 3, 4, 5])
+        + pairing("predator_prey", "rnd", 2_000_000, [1, 2, 3, 4, 5])
+        + pairing("multi_room", "sf", 4_000_000, [1, 2, 3, 4, 5]),
+    },
+    "edti": {
+        "description": "EDTI's tasks pass and secret_room with count novelty; credit none/shared/imca; "
+                       "5 seeds; 3M env steps",
+        "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
+                     "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000}],
+    },
+    "quick": {
+        "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",
+        "entries": pairing("coop_nav", "count", 1_000_000, [1, 2])
+        + pairing("predator_prey", "rnd", 400_000, [1, 2])
+        + pairing("multi_room", "sf", 800_000, [1, 2]),
+    },
+}
+
+
+class ExperimentError(Exception):
+    """A one-line, user-facing error."""
+
+
+def as_list(value):
+    return value if isinstance(value, list) else [value]
+
+
+def expand(entries, where):
+    """Grid entries -> list of cells (dicts with every axis set, plus flags)."""
+    cells = []
+    for index, entry in enumerate(entries):
+        name = f"{where}: entry {index}"
+        if not isinstance(entry, dict):
+            raise ExperimentError(f"{name}: must be an object")
+        unknown = set(entry) - set(AXES) - {"flags"}
+        if unknown:
+            raise ExperimentError(f"{name}: unknown key '{sorted(unknown)[0]}' (keys: {', '.join(AXES)}, flags)")
+        for key in ("scenario", "reward", "credit"):
+            if key not in entry:
+                raise ExperimentError(f"{name}: missing '{key}'")
+        flags = entry.get("flags", {})
+        if not isinstance(flags, dict):
+            raise ExperimentError(f"{name}: 'flags' must be an object of ./imca train flags")
+        values = {key: as_list(entry.get(key, default)) for key, default in
+                  (("scenario", None), ("reward", None), ("credit", None), ("permutation", "off"),
+                   ("seed", 1), ("steps", 2_000_000))}
+        for key, allowed in (("scenario", launch.SCENARIOS), ("reward", launch.REWARDS),
+                             ("credit", launch.CREDITS), ("permutation", launch.PERMUTATIONS)):
+            for v in values[key]:
+                if v not in allowed:
+                    raise ExperimentError(f"{name}: {key} '{v}' is not one of {', '.join(allowed)}")
+        for key in ("seed", "steps"):
+            for v in values[key]:
+                if not isinstance(v, int) or isinstance(v, bool) or v < (0 if key == "seed" else 1):
+                    raise ExperimentError(f"{name}: {key} must be {'an integer >= 0' if key == 'seed' else 'a positive integer'}, got {v!r}")
+        for combo in itertools.product(*(values[k] for k in AXES)):
+            cells.append(dict(zip(AXES, combo), flags=dict(flags)))
+    seen = set()
+    unique = []
+    for cell in cells:
+        cid = cell_id(cell)
+        if cid not in seen:
+            seen.add(cid)
+            unique.append(cell)
+    if not unique:
+        raise ExperimentError(f"{where}: the grid has no cells")
+    return unique
+
+
+def flags_text(flags):
+    return " ".join(f"{key}={value}" for key, value in sorted(flags.items()))
+
+
+def labeller(cells):
+    """method(cell) -> row label: credit, imca's permutation, and those extra
+    flags that differ between cells of the same scenario and reward."""
+    varying = {}
+    for cell in cells:
+        group = varying.setdefault((cell["scenario"], cell["reward"]), {})
+        for key in set(group) | set(cell["flags"]):
+            group.setdefault(key, set()).add(json.dumps(cell["flags"].get(key)))
+
+    def method(cell):
+        label = cell["credit"]
+        if cell["permutation"] != "off":
+            label += f"/{cell['permutation']}"
+        group = varying[(cell["scenario"], cell["reward"])]
+        shown = {k: v for k, v in cell["flags"].items() if len(group.get(k, ())) > 1}
+        return label + (" " + flags_text(shown) if shown else "")
+
+    return method
+
+
+def cell_id(cell):
+    parts = [cell["scenario"], cell["reward"], cell["credit"], cell["permutation"], f"s{cell['seed']}",
+             f"{cell['steps'] // 1000}k" if cell["steps"] % 1000 == 0 else str(cell["steps"])]
+    if cell["flags"]:
+        # Extra flags by a short digest; grid.json and config.json spell them out.
+        parts.append("f" + hashlib.sha1(json.dumps(cell["flags"], sort_keys=True).encode()).hexdigest()[:8])
+    return "-".join(parts)
+
+
+def train_argv(cell, out):
+    argv = [sys.executable, os.path.join(ROOT, "tools", "launch.py"), "--quiet", "--out", out]
+    for key, flag in AXES.items():
+        argv += [flag, str(cell[key])]
+    for key, value in sorted(cell["flags"].items()):
+        argv += [f"--{key.replace('_', '-')}", str(value)]
+    return argv
+
+
+def check_flags(cells):
+    """Every cell's flags must parse as ./imca train flags (one-line error otherwise)."""
+    checked = set()
+    for cell in cells:
+        key = json.dumps(cell["flags"], sort_keys=True)
+        if key in checked:
+            continue
+        checked.add(key)
+        argv = train_argv(cell, "unused")[3:]
+        captured = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(captured):
+                launch.parse_args(argv)
+        except SystemExit:
+            why = captured.getvalue().strip().removeprefix("imca train: ")
+            raise ExperimentError(f"flags {json.dumps(cell['flags'])}: {why}")
+
+
+def finished(run_dir, cell):
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            summary = json.load(f)
+    except (OSError, ValueError):
+        return None
+    if summary.get("interrupted") or summary.get("env_steps", 0) < cell["steps"]:
+        return None
+    return summary
+
+
+def default_jobs():
+    # One run keeps about two cores busy (the learner, the actors and the
+    # reward server); more runs than cores/2 slow every run down.
+    return max(1, (os.cpu_count() or 2) // 2)
+
+
+def fmt_duration(seconds):
+    return launch.fmt_duration(seconds)
+
+
+def run_cells(cells, out, jobs):
+    """Runs the unfinished cells, `jobs` at a time. Returns False if interrupted."""
+    todo = []
+    for cell in cells:
+        run_dir = os.path.join(out, "cells", cell_id(cell))
+        if finished(run_dir, cell):
+            continue
+        todo.append((cell, run_dir))
+    done_before = len(cells) - len(todo)
+    print(f"imca experiment: {len(cells)} cells, {done_before} already finished, {len(todo)} to run, "
+          f"{jobs} at a time; results in {out}", file=sys.stderr, flush=True)
+    running = []  # (cell, run_dir, Popen, start time)
+    stop = []
+    old_int = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+    old_term = signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    started = time.time()
+    completed = 0
+    failures = []
+    try:
+        while (todo or running) and not stop:
+            while todo and len(running) < jobs and not stop:
+                cell, run_dir = todo.pop(0)
+                if os.path.exists(run_dir):
+                    shutil.rmtree(run_dir)  # An unfinished cell starts over.
+                os.makedirs(run_dir)
+                log = open(os.path.join(run_dir, "train.log"), "w")
+                proc = subprocess.Popen(train_argv(cell, run_dir), stdout=log, stderr=subprocess.STDOUT,
+                                        start_new_session=True)
+                running.append((cell, run_dir, proc, time.time()))
+            time.sleep(0.5)
+            for entry in list(running):
+                cell, run_dir, proc, t0 = entry
+                if proc.poll() is None:
+                    continue
+                running.remove(entry)
+                completed += 1
+                summary = finished(run_dir, cell)
+                if summary is None:
+                    failures.append((cell_id(cell), last_line(os.path.join(run_dir, "train.log"))))
+                    status = "FAILED"
+                else:
+                    status = f"success {summary['final_success_rate']:.0%}"
+                elapsed = time.time() - started
+                left = len(todo) + len(running)
+                eta = elapsed / completed * left / 1 if completed else 0
+                print(f"[{done_before + completed}/{len(cells)}] {cell_id(cell)}: {status} "
+                      f"({time.time() - t0:.0f} s); ETA {fmt_duration(eta)}", file=sys.stderr, flush=True)
+    finally:
+        for _, _, proc, _ in running:
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)  # launch.py stops its services in order.
+        for _, _, proc, _ in running:
+            try:
+                proc.wait(timeout=180)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+    for cid, line in failures:
+        print(f"imca experiment: cell {cid} failed: {line}", file=sys.stderr)
+    return not stop
+
+
+def last_line(path):
+    try:
+        with open(path, errors="replace") as f:
+            lines = [l.strip() for l in f if l.strip()]
+        return lines[-1] if lines else "no output"
+    except OSError:
+        return "no log"
+
+
+def main(argv):
+    p = launch.OneLineParser(prog="imca experiment", description=__doc__,
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--preset", choices=sorted(PRESETS), help="a built-in grid")
+    what.add_argument("--grid", metavar="FILE", help="a JSON grid (docs/experiments.md)")
+    what.add_argument("--report", metavar="DIR", help="only (re)write the tables and plots of DIR")
+    p.add_argument("--out", default="", help="results folder (default: results/<preset or grid name>)")
+    p.add_argument("--jobs", type=launch.positive_int, default=0,
+                   help=f"runs at once (default: cores/2 = {default_jobs()})")
+    args = p.parse_args(argv)
+
+    import report  # noqa: E402  (matplotlib only once the flags are valid)
+
+    try:
+        if args.report:
+            out = os.path.abspath(args.report)
+            grid = load_saved_grid(out)
+        else:
+            if args.preset:
+                grid = {"name": args.preset, "description": PRESETS[args.preset]["description"],
+                        "entries": PRESETS[args.preset]["entries"]}
+            else:
+                grid = load_grid(args.grid)
+            out = os.path.abspath(args.out or os.path.join(ROOT, "results", grid["name"]))
+        cells = expand(grid["entries"], args.grid or args.preset or "grid.json")
+        check_flags(cells)
+        os.makedirs(out, exist_ok=True)
+        if not args.report:
+            save_grid(out, grid)
+            complete = run_cells(cells, out, args.jobs or default_jobs())
+        else:
+            complete = True
+        report.write(out, cells, {cell_id(c): finished(os.path.join(out, "cells", cell_id(c)), c) for c in cells},
+                     labeller(cells), cell_id)
+    except ExperimentError as error:
+        print(f"imca experiment: {error}", file=sys.stderr)
+        return 2
+    if not complete:
+        print("imca experiment: interrupted; the same command resumes", file=sys.stderr)
+        return 130
+    print(f"imca experiment: table {os.path.join(out, 'table.md')}", file=sys.stderr)
+    return 0
+
+
+def load_grid(path):
+    try:
+        with open(path) as f:
+            grid = json.load(f)
+    except OSError as e:
+        raise ExperimentError(f"--grid: cannot read '{path}': {e.strerror}")
+    except ValueError as e:
+        raise ExperimentError(f"--grid: '{path}' is not valid JSON: {e}")
+    if not isinstance(grid, dict) or not isinstance(grid.get("entries"), list):
+        raise ExperimentError(f"--grid: '{path}' must be an object with a list 'entries'")
+    grid.setdefault("name", os.path.splitext(os.path.basename(path))[0])
+    if not isinstance(grid["name"], str) or not grid["name"] or "/" in grid["name"]:
+        raise ExperimentError("--grid: 'name' must be a non-empty string without '/'")
+    return grid
+
+
+def save_grid(out, grid):
+    path = os.path.join(out, "grid.json")
+    if os.path.exists(path):
+        with open(path) as f:
+            saved = json.load(f)
+        if saved.get("entries") != json.loads(json.dumps(grid["entries"])):
+            print(f"imca experiment: note: {out} held another grid; its finished cells that are "
+                  f"also in this one are kept", file=sys.stderr)
+    with open(path + ".tmp", "w") as f:
+        json.dump(grid, f, indent=2)
+    os.replace(path + ".tmp", path)
+
+
+def load_saved_grid(out):
+    path = os.path.join(out, "grid.json")
+    if not os.path.isfile(path):
+        raise ExperimentError(f"--report: '{out}' holds no experiment (grid.json)")
+    return load_grid(path)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,261 @@
+"""Tables and plots of an experiment folder (used by tools/experiment.py).
+
+Per (scenario, reward, method): mean and 95% confidence interval (Student t
+over seeds) of the final success rate, env steps to 80% and 90% success
+(mean over the seeds that got there, and how many did), wall time; learning
+curves with 95% bands; per-agent credit shares of an imca run; GIFs.
+"""
+import csv
+import math
+import os
+import shutil
+import statistics
+
+# Two-sided 95% Student t quantiles by degrees of freedom (1..30).
+T95 = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145,
+       2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048,
+       2.045, 2.042]
+
+
+def mean_ci(values):
+    """(mean, half-width of the 95% CI); half-width None for one value."""
+    m = statistics.mean(values)
+    if len(values) < 2:
+        return m, None
+    t = T95[len(values) - 2] if len(values) - 1 <= len(T95) else 1.96
+    return m, t * statistics.stdev(values) / math.sqrt(len(values))
+
+
+def read_metrics(run_dir):
+    try:
+        with open(os.path.join(run_dir, "metrics.csv")) as f:
+            return list(csv.DictReader(f))
+    except OSError:
+        return []
+
+
+def groups_of(cells, summaries, method, cell_id):
+    """{(scenario, reward, method): [(cell, summary or None)]} in grid order."""
+    groups = {}
+    for cell in cells:
+        key = (cell["scenario"], cell["reward"], method(cell))
+        groups.setdefault(key, []).append((cell, summaries.get(cell_id(cell))))
+    return groups
+
+
+def fmt_pct(m, h):
+    """Mean and its 95% CI, clipped to [0, 100%] (a rate cannot leave it)."""
+    if h is None:
+        return f"{m:.0%}"
+    return f"{m:.0%} [{max(0.0, m - h):.0%}, {min(1.0, m + h):.0%}]"
+
+
+def fmt_steps(values, total):
+    reached = [v for v in values if v is not None]
+    if not reached:
+        return f"- (0/{total})"
+    m, h = mean_ci(reached)
+    text = f"{m / 1e6:.2f}M" + ("" if h is None else f" ± {h / 1e6:.2f}M")
+    return f"{text} ({len(reached)}/{total})"
+
+
+def write(out, cells, summaries, method, cell_id):
+    groups = groups_of(cells, summaries, method, cell_id)
+    write_runs_csv(out, cells, summaries, method, cell_id)
+    rows = []
+    for (scenario, reward, label), members in groups.items():
+        done = [(c, s) for c, s in members if s is not None]
+        row = {"scenario": scenario, "reward": reward, "method": label, "seeds_done": len(done),
+               "seeds": len(members), "budget": members[0][0]["steps"]}
+        if done:
+            m, h = mean_ci([s["final_success_rate"] for _, s in done])
+            row.update(success_mean=m, success_ci95=h)
+            for pct in (80, 90):
+                reached = [s[f"steps_to_{pct}pct_success"] for _, s in done]
+                hits = [v for v in reached if v is not None]
+                row[f"steps_to_{pct}_mean"] = statistics.mean(hits) if hits else None
+                row[f"steps_to_{pct}_ci95"] = mean_ci(hits)[1] if hits else None
+                row[f"reached_{pct}"] = len(hits)
+                row[f"_steps{pct}"] = reached
+            row["wall_seconds_mean"] = statistics.mean(s["wall_seconds"] for _, s in done)
+        rows.append(row)
+    write_table_csv(out, rows)
+    write_table_md(out, rows)
+    plots(out, groups, method, cell_id)
+
+
+def write_runs_csv(out, cells, summaries, method, cell_id):
+    fields = ["cell", "scenario", "reward", "method", "credit", "permutation", "seed", "budget", "finished",
+              "final_success_rate", "steps_to_80pct_success", "steps_to_90pct_success", "wall_seconds",
+              "env_steps_per_sec"]
+    with open(os.path.join(out, "runs.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        for cell in cells:
+            s = summaries.get(cell_id(cell))
+            w.writerow({"cell": cell_id(cell), "scenario": cell["scenario"], "reward": cell["reward"],
+                        "method": method(cell), "credit": cell["credit"], "permutation": cell["permutation"],
+                        "seed": cell["seed"], "budget": cell["steps"], "finished": s is not None,
+                        **({k: s[k] for k in fields[9:]} if s else {})})
+
+
+def write_table_csv(out, rows):
+    fields = ["scenario", "reward", "method", "seeds_done", "seeds", "budget", "success_mean", "success_ci95",
+              "steps_to_80_mean", "steps_to_80_ci95", "reached_80", "steps_to_90_mean", "steps_to_90_ci95",
+              "reached_90", "wall_seconds_mean"]
+    with open(os.path.join(out, "table.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        for row in rows:
+            w.writerow(row)
+
+
+def write_table_md(out, rows):
+    lines = ["| scenario | reward | method | seeds | final success: mean [95% CI] | env steps to 80% "
+             "| env steps to 90% | wall time / run |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r["seeds_done"] == 0:
+            lines.append(f"| {r['scenario']} | {r['reward']} | {r['method']} | 0/{r['seeds']} | not run yet | | | |")
+            continue
+        lines.append(
+            f"| {r['scenario']} | {r['reward']} | {r['method']} | {r['seeds_done']}/{r['seeds']} "
+            f"| {fmt_pct(r['success_mean'], r['success_ci95'])} "
+            f"| {fmt_steps(r['_steps80'], r['seeds_done'])} | {fmt_steps(r['_steps90'], r['seeds_done'])} "
+            f"| {r['wall_seconds_mean']:.0f} s |")
+    lines.append("")
+    lines.append("Budget per run in env steps: " + ", ".join(
+        sorted({f"{r['scenario']} {r['budget']:,}" for r in rows})) + ". Steps to 80%/90%: mean over the "
+        "seeds that got there (how many did, in brackets). CI: Student t over seeds.")
+    with open(os.path.join(out, "table.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def curve(rows, grid, key="success_rate"):
+    """Step-hold interpolation of a metrics column onto `grid`."""
+    xs = [int(r["env_steps"]) for r in rows]
+    ys = [float(r[key]) for r in rows]
+    out, j = [], -1
+    for x in grid:
+        while j + 1 < len(xs) and xs[j + 1] <= x:
+            j += 1
+        out.append(ys[j] if j >= 0 else 0.0)
+    return out
+
+
+def plots(out, groups, method, cell_id):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenarios = {}
+    for (scenario, reward, label), members in groups.items():
+        scenarios.setdefault((scenario, reward), []).append((label, members))
+    gif_dir = os.path.join(out, "gifs")
+    for (scenario, reward), methods in scenarios.items():
+        fig, ax = plt.subplots(figsize=(7, 4.2))
+        for label, members in methods:
+            runs = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
+            runs = [r for r in runs if r]
+            if not runs:
+                continue
+            budget = members[0][0]["steps"]
+            grid = [budget * i / 100 for i in range(101)]
+            ys = [curve(r, grid) for r in runs]
+            mean = [statistics.mean(col) for col in zip(*ys)]
+            line, = ax.plot(grid, mean, lw=1.6, label=f"{label} ({len(runs)})")
+            if len(runs) > 1:
+                half = [mean_ci(list(col))[1] for col in zip(*ys)]
+                ax.fill_between(grid, [max(0, m - h) for m, h in zip(mean, half)],
+                                [min(1, m + h) for m, h in zip(mean, half)], color=line.get_color(), alpha=0.15)
+        ax.set_xlabel("env steps")
+        ax.set_ylabel("evaluation success rate")
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+        ax.set_title(f"{scenario} + {reward}: mean and 95% CI over seeds", fontsize=10)
+        ax.legend(fontsize=8, loc="upper left")
+        fig.tight_layout()
+        fig.savefig(os.path.join(out, f"curves-{scenario}-{reward}.png"), dpi=110)
+        plt.close(fig)
+        # GIF of each method's final policy (its first finished seed).
+        os.makedirs(gif_dir, exist_ok=True)
+        for label, members in methods:
+            for c, s in members:
+                gif = os.path.join(out, "cells", cell_id(c), "episode.gif")
+                if s is not None and os.path.exists(gif):
+                    name = f"{scenario}-{reward}-{label.replace('/', '_').replace(' ', '_')}.gif"
+                    shutil.copyfile(gif, os.path.join(gif_dir, name))
+                    break
+        shares_plot(out, scenario, reward, methods, cell_id, plt)
+
+
+def shares_plot(out, scenario, reward, methods, cell_id, plt):
+    """Credit shares of the first finished imca run: per agent over training
+    (metrics.csv), and over one late training episode (credit_trace.csv)."""
+    for label, members in methods:
+        if not label.startswith("imca"):
+            continue
+        for c, s in members:
+            run_dir = os.path.join(out, "cells", cell_id(c))
+            rows = read_metrics(run_dir)
+            if s is None or not rows or "share_1" not in rows[0]:
+                continue
+            trace = read_trace(run_dir)
+            fig, axes = plt.subplots(1, 2 if trace else 1, figsize=(12 if trace else 6.5, 4))
+            axes = axes if trace else [axes]
+            n = sum(1 for k in rows[0] if k.startswith("share_") and k[6:].isdigit())
+            steps = [int(r["env_steps"]) for r in rows]
+            ax = axes[0]
+            for a in range(1, n + 1):
+                ax.plot(steps, [float(r[f"share_{a}"]) for r in rows], lw=1.2, label=f"agent {a}: mean p^a")
+            ax.plot(steps, [float(r["share_max"]) for r in rows], lw=1.2, ls="--", color="k",
+                    label="mean max_a p^a")
+            ax.axhline(1 / n, color="grey", lw=0.8, ls=":")
+            ax.set_xlabel("env steps")
+            ax.set_title(f"credit shares over training ({label}, seed {c['seed']})", fontsize=10)
+            ax.legend(fontsize=8)
+            ax.grid(alpha=0.3)
+            if trace:
+                trace_panel(axes[1], trace, n)
+            fig.tight_layout()
+            fig.savefig(os.path.join(out, f"shares-{scenario}-{reward}.png"), dpi=110)
+            plt.close(fig)
+            return
+
+
+def read_trace(run_dir):
+    try:
+        with open(os.path.join(run_dir, "credit_trace.csv")) as f:
+            return list(csv.DictReader(f))
+    except OSError:
+        return []
+
+
+def trace_panel(ax, trace, n):
+    """p^a over the steps of one episode; a dot where agent a entered a cell it
+    had not visited earlier in the episode (its exploring moves)."""
+    seen = [set() for _ in range(n)]
+    on_new, on_old = [], []
+    for a in range(n):
+        rows = [r for r in trace if int(r["agent"]) == a]
+        t = [int(r["t"]) for r in rows]
+        p = [float(r["share"]) for r in rows]
+        line, = ax.plot(t, p, lw=1.0, label=f"agent {a + 1}")
+        new_t, new_p = [], []
+        for r in rows:
+            cell = r["next_cell"]
+            if cell not in seen[a]:
+                seen[a].add(cell)
+                new_t.append(int(r["t"]))
+                new_p.append(float(r["share"]))
+                on_new.append(float(r["share"]))
+            else:
+                on_old.append(float(r["share"]))
+        ax.scatter(new_t, new_p, s=12, color=line.get_color(), zorder=3)
+    ax.axhline(1 / n, color="grey", lw=0.8, ls=":")
+    ax.set_xlabel("step of the episode")
+    ax.set_ylabel("p^a")
+    mean = lambda xs: f"{statistics.mean(xs):.3f}" if xs else "-"
+    ax.set_title(f"one late training episode: p^a per step; dots: the agent entered a new cell\n"
+                 f"mean p^a on those steps {mean(on_new)}, on the others {mean(on_old)}", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
