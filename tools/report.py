@@ -152,6 +152,8 @@ def plots(out, groups, method, cell_id):
         scenarios.setdefault((scenario, reward), []).append((label, members))
     gif_dir = os.path.join(out, "gifs")
     for (scenario, reward), methods in scenarios.items():
+        if not any(s is not None for _, members in methods for _, s in members):
+            continue  # Nothing finished yet for this scenario.
         fig, ax = plt.subplots(figsize=(7, 4.2))
         for label, members in methods:
             runs = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
