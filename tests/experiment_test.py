@@ -44,6 +44,12 @@ class ExperimentErrorsTest(unittest.TestCase):
                             "unknown key 'sed'")
         self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca",
                               "flags": {"temperature": 0}}], "--temperature")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca",
+                              "flags": {"steps": 5000}}], "flag 'steps'", "entry's 'steps'")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca",
+                              "flags": {"reward_port": 5000}}], "flag 'reward-port'")
+        self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca",
+                              "flags": {"envs_per_actor": 4, "envs-per-actor": 8}}], "twice")
 
     def test_unreadable_grid_names_the_flag(self):
         r = subprocess.run(EXPERIMENT + ["--grid", "/nonexistent/grid.json"], capture_output=True, text=True)

@@ -10,8 +10,8 @@ Every cell (scenario x reward x credit x permutation x seed x budget) is one
 whose summary.json says it reached its budget is skipped, so running the same
 command again after Ctrl-C or a crash resumes; an unfinished cell starts over
 (each cell is one uninterrupted run). Results: DIR/table.md, DIR/table.csv,
-DIR/runs.csv, DIR/curves-<scenario>.png, DIR/shares-<scenario>.png,
-DIR/gifs/<scenario>-<method>.gif. See docs/experiments.md.
+DIR/runs.csv, DIR/curves-<scenario>-<reward>.png, DIR/shares-<scenario>-<reward>.png,
+DIR/gifs/<scenario>-<reward>-<method>.gif. See docs/experiments.md.
 """
 import argparse
 import contextlib
@@ -34,6 +34,9 @@ import launch  # noqa: E402  (flag vocabulary and validation of ./imca train)
 # ./imca train flag each becomes. Anything else under "flags" is passed as is.
 AXES = {"scenario": "--scenario", "reward": "--reward", "credit": "--credit", "permutation": "--permutation",
         "seed": "--seed", "steps": "--steps"}
+# ./imca train flags that a grid's "flags" may not set: the axes, and what
+# the runner itself controls.
+RESERVED_FLAGS = set(AXES) | {"out", "resume", "quiet", "reward-port", "learner-port"}
 IMCA_PERMUTATIONS = ["off", "random", "canonical"]
 BASELINES = ["none", "independent", "shared"]
 
@@ -95,6 +98,13 @@ def expand(entries, where):
         flags = entry.get("flags", {})
         if not isinstance(flags, dict):
             raise ExperimentError(f"{name}: 'flags' must be an object of ./imca train flags")
+        flags = {key.replace("_", "-"): value for key, value in flags.items()}
+        for key in flags:
+            if key in RESERVED_FLAGS:
+                raise ExperimentError(f"{name}: flag '{key}' is set by the grid itself"
+                                      + (f" (use the entry's '{key}')" if key in AXES else ""))
+        if len(flags) != len(entry.get("flags", {})):
+            raise ExperimentError(f"{name}: 'flags' names a flag twice (dashes and underscores are the same)")
         values = {key: as_list(entry.get(key, default)) for key, default in
                   (("scenario", None), ("reward", None), ("credit", None), ("permutation", "off"),
                    ("seed", 1), ("steps", 2_000_000))}
@@ -128,18 +138,24 @@ def flags_text(flags):
 def labeller(cells):
     """method(cell) -> row label: credit, imca's permutation, and those extra
     flags that differ between cells of the same scenario and reward."""
+    keys = {}
+    for cell in cells:
+        keys.setdefault((cell["scenario"], cell["reward"]), {"steps"}).update(cell["flags"])
     varying = {}
     for cell in cells:
-        group = varying.setdefault((cell["scenario"], cell["reward"]), {})
-        for key in set(group) | set(cell["flags"]):
-            group.setdefault(key, set()).add(json.dumps(cell["flags"].get(key)))
+        pair = (cell["scenario"], cell["reward"])
+        group = varying.setdefault(pair, {})
+        settings = dict(cell["flags"], steps=cell["steps"])
+        for key in keys[pair]:
+            group.setdefault(key, set()).add(json.dumps(settings.get(key)))
 
     def method(cell):
         label = cell["credit"]
         if cell["permutation"] != "off":
             label += f"/{cell['permutation']}"
         group = varying[(cell["scenario"], cell["reward"])]
-        shown = {k: v for k, v in cell["flags"].items() if len(group.get(k, ())) > 1}
+        settings = dict(cell["flags"], steps=cell["steps"])
+        shown = {k: v for k, v in settings.items() if len(group.get(k, ())) > 1}
         return label + (" " + flags_text(shown) if shown else "")
 
     return method
@@ -159,7 +175,7 @@ def train_argv(cell, out):
     for key, flag in AXES.items():
         argv += [flag, str(cell[key])]
     for key, value in sorted(cell["flags"].items()):
-        argv += [f"--{key.replace('_', '-')}", str(value)]
+        argv += [f"--{key}", str(value)]
     return argv
 
 
@@ -227,9 +243,9 @@ def run_cells(cells, out, jobs):
                 if os.path.exists(run_dir):
                     shutil.rmtree(run_dir)  # An unfinished cell starts over.
                 os.makedirs(run_dir)
-                log = open(os.path.join(run_dir, "train.log"), "w")
-                proc = subprocess.Popen(train_argv(cell, run_dir), stdout=log, stderr=subprocess.STDOUT,
-                                        start_new_session=True)
+                with open(os.path.join(run_dir, "train.log"), "w") as log:
+                    proc = subprocess.Popen(train_argv(cell, run_dir), stdout=log, stderr=subprocess.STDOUT,
+                                            start_new_session=True)
                 running.append((cell, run_dir, proc, time.time()))
             time.sleep(0.5)
             for entry in list(running):
@@ -253,16 +269,20 @@ def run_cells(cells, out, jobs):
         for _, _, proc, _ in running:
             if proc.poll() is None:
                 proc.send_signal(signal.SIGTERM)  # launch.py stops its services in order.
-        for _, _, proc, _ in running:
+        for _, run_dir, proc, _ in running:
             try:
-                proc.wait(timeout=180)
+                # launch.py stops actors, learner and reward server with
+                # bounded waits (at most 270 s in all).
+                proc.wait(timeout=330)
             except subprocess.TimeoutExpired:
                 proc.kill()
+                print(f"imca experiment: {run_dir} did not stop in 330 s; its services may still run "
+                      f"(logs/ names them)", file=sys.stderr)
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
     for cid, line in failures:
         print(f"imca experiment: cell {cid} failed: {line}", file=sys.stderr)
-    return not stop
+    return not stop, len(failures)
 
 
 def last_line(path):
@@ -302,11 +322,11 @@ def main(argv):
         cells = expand(grid["entries"], args.grid or args.preset or "grid.json")
         check_flags(cells)
         os.makedirs(out, exist_ok=True)
+        failed = 0
+        complete = True
         if not args.report:
             save_grid(out, grid)
-            complete = run_cells(cells, out, args.jobs or default_jobs())
-        else:
-            complete = True
+            complete, failed = run_cells(cells, out, args.jobs or default_jobs())
         report.write(out, cells, {cell_id(c): finished(os.path.join(out, "cells", cell_id(c)), c) for c in cells},
                      labeller(cells), cell_id)
     except ExperimentError as error:
@@ -316,6 +336,10 @@ def main(argv):
         print("imca experiment: interrupted; the same command resumes", file=sys.stderr)
         return 130
     print(f"imca experiment: table {os.path.join(out, 'table.md')}", file=sys.stderr)
+    if failed:
+        print(f"imca experiment: {failed} cells failed (their train.log says why); the same command "
+              f"retries them", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -338,8 +362,11 @@ def load_grid(path):
 def save_grid(out, grid):
     path = os.path.join(out, "grid.json")
     if os.path.exists(path):
-        with open(path) as f:
-            saved = json.load(f)
+        try:
+            with open(path) as f:
+                saved = json.load(f)
+        except (OSError, ValueError):
+            saved = {}
         if saved.get("entries") != json.loads(json.dumps(grid["entries"])):
             print(f"imca experiment: note: {out} held another grid; its finished cells that are "
                   f"also in this one are kept", file=sys.stderr)

@@ -205,8 +205,10 @@ def write_summary(run_dir, config, rows, interrupted):
         "scenario": config["scenario"], "reward": config["reward"], "credit": config["credit"],
         "permutation": config["permutation"], "seed": config["seed"],
     }
-    with open(os.path.join(run_dir, "summary.json"), "w") as f:
+    path = os.path.join(run_dir, "summary.json")
+    with open(path + ".tmp", "w") as f:
         json.dump(summary, f, indent=2)
+    os.replace(path + ".tmp", path)
     return summary
 
 
@@ -321,11 +323,15 @@ def run(args):
         with open(os.path.join(run_dir, "logs", "exit_codes.json"), "w") as f:
             json.dump(codes, f, indent=2)
         rows = read_metrics(os.path.join(run_dir, "metrics.csv"))
-        write_summary(run_dir, config, rows, interrupted)
-        if rows:
-            plot(run_dir, rows, f"{args.scenario} / {args.reward} / credit={args.credit} / "
-                                f"permutation={args.permutation} / seed={args.seed}")
-        episode_gif(run_dir, scenario_flags, args.seed)
+        # summary.json comes last: its presence means the run folder is complete
+        # (./imca experiment counts a cell as finished by it).
+        try:
+            if rows:
+                plot(run_dir, rows, f"{args.scenario} / {args.reward} / credit={args.credit} / "
+                                    f"permutation={args.permutation} / seed={args.seed}")
+            episode_gif(run_dir, scenario_flags, args.seed)
+        finally:
+            write_summary(run_dir, config, rows, interrupted)
     if not args.quiet:
         print(file=sys.stderr)
     with open(os.path.join(run_dir, "summary.json")) as f:

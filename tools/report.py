@@ -239,6 +239,8 @@ def trace_panel(ax, trace, n):
     on_new, on_old = [], []
     for a in range(n):
         rows = [r for r in trace if int(r["agent"]) == a]
+        if rows:
+            seen[a].add(rows[0]["cell"])  # Where the agent starts is not a new cell.
         t = [int(r["t"]) for r in rows]
         p = [float(r["share"]) for r in rows]
         line, = ax.plot(t, p, lw=1.0, label=f"agent {a + 1}")
