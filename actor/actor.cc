@@ -242,6 +242,10 @@ absl::Status Actor::Run() {
 
 void Actor::Trace(const v1::Unroll& u) {
   const int E = u.num_envs(), n = u.num_agents(), k = u.state_size();
+  if (u.intrinsic_rewards_size() != int64_t{u.length()} * E * n) {
+    trace_gap_ = true;  // A malformed response: the learner rejects the unroll too.
+    return;
+  }
   const bool diagnostics = u.contributions_size() == u.intrinsic_rewards_size() &&
                            u.global_rewards_size() * n == u.intrinsic_rewards_size() &&
                            u.credit_shares_size() == u.intrinsic_rewards_size();
@@ -279,8 +283,10 @@ void Actor::WriteTrace() {
   {
     std::ofstream out(tmp, std::ios::trunc);
     out << "episode,t,agent,cell,next_cell,action,share,contribution,agent_reward,global_reward\n" << trace_last_;
-    if (!out.good()) {
+    out.close();
+    if (out.fail()) {
       std::fprintf(stderr, "%s: cannot write %s\n", config_.actor_id.c_str(), tmp.c_str());
+      std::remove(tmp.c_str());
       return;
     }
   }

@@ -328,14 +328,20 @@ void Learner::Publish() {
 void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit) {
   if (config_.run_dir.empty()) return;
   if (!metrics_.is_open()) {
-    const std::string path = (fs::path(config_.run_dir) / "metrics.csv").string();
-    const bool fresh = !fs::exists(path) || fs::file_size(path) == 0;
-    metrics_.open(path, std::ios::app);
-    if (fresh) {
-      metrics_ << kMetricsHeader;
-      for (int a = 1; a <= scenario_->num_agents(); ++a) metrics_ << ",share_" << a;
-      metrics_ << "\n";
+    const fs::path path = fs::path(config_.run_dir) / "metrics.csv";
+    std::string header = kMetricsHeader;
+    for (int a = 1; a <= scenario_->num_agents(); ++a) absl::StrAppend(&header, ",share_", a);
+    std::string existing;
+    if (std::ifstream in(path); in) std::getline(in, existing);
+    if (!existing.empty() && existing != header) {
+      // A resumed run written by another version: keep its rows apart
+      // rather than append rows whose columns do not match the header.
+      std::error_code error;
+      fs::rename(path, fs::path(config_.run_dir) / "metrics.old.csv", error);
+      existing.clear();
     }
+    metrics_.open(path, std::ios::app);
+    if (existing.empty()) metrics_ << header << "\n";
   }
   const v1::LearnerStatus s = Status();
   double train_success;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "common/env.h"
@@ -118,6 +119,31 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
     EXPECT_EQ(a.tensors(i).data().size(), b.tensors(i).data().size());
     EXPECT_TRUE(std::equal(a.tensors(i).data().begin(), a.tensors(i).data().end(), b.tensors(i).data().begin()));
   }
+}
+
+TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
+  // A run folder from a version with other metrics columns (e.g. resumed
+  // across an upgrade): its rows move to metrics.old.csv, the new file gets
+  // the current header and rows of matching width.
+  std::filesystem::create_directories(run_dir_);
+  std::ofstream(run_dir_ + "/metrics.csv") << "iteration,env_steps\n1,256\n";
+  config_.budget_steps = 256;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
+  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
+  trainer.join();
+  std::ifstream old_file(run_dir_ + "/metrics.old.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(old_file, line));
+  EXPECT_EQ(line, "iteration,env_steps");
+  std::ifstream metrics(run_dir_ + "/metrics.csv");
+  std::string header, row;
+  ASSERT_TRUE(std::getline(metrics, header));
+  ASSERT_TRUE(std::getline(metrics, row));
+  EXPECT_THAT(header, HasSubstr(",global_reward,contribution_abs,share_1,share_2"));
+  EXPECT_EQ(std::count(header.begin(), header.end(), ','), std::count(row.begin(), row.end(), ','));
 }
 
 TEST_F(LearnerTest, StopWakesBlockedPushers) {
