@@ -364,32 +364,16 @@ void RndScorer::FillStats(v1::RewardStats* stats) const {
 
 absl::Status RndScorer::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
-  return SaveArchive(path, impl_->tag, [&](torch::serialize::OutputArchive& archive) {
-    if (impl_->joint) impl_->joint->Write(archive, "joint.");
-    if (impl_->local) impl_->local->Write(archive, "local.");
-    archive.write("updates", torch::tensor(impl_->updates, torch::kInt64));
-  });
+  return SaveModels(path, impl_->tag, impl_->joint, impl_->local, "updates", impl_->updates);
 }
 
 absl::Status RndScorer::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
-  return LoadArchive(path, impl_->tag, [&](torch::serialize::InputArchive& archive) {
-    // Read into fresh models; swap them in only when everything was read.
-    std::optional<Model> joint, local;
-    if (impl_->joint) {
-      joint.emplace(impl_->encoder.joint_dim(), impl_->rnd);
-      joint->Read(archive, "joint.");
-    }
-    if (impl_->local) {
-      local.emplace(impl_->encoder.local_dim(impl_->config.permutation == Permutation::kOff), impl_->rnd);
-      local->Read(archive, "local.");
-    }
-    torch::Tensor updates;
-    archive.read("updates", updates);
-    impl_->joint.swap(joint);
-    impl_->local.swap(local);
-    impl_->updates = updates.item<int64_t>();
-  });
+  Impl& impl = *impl_;
+  const bool with_id = impl.config.permutation == Permutation::kOff;
+  return LoadModels<Model>(
+      path, impl.tag, &impl.joint, &impl.local, [&] { return Model(impl.encoder.joint_dim(), impl.rnd); },
+      [&] { return Model(impl.encoder.local_dim(with_id), impl.rnd); }, "updates", &impl.updates);
 }
 
 absl::Status RndScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,

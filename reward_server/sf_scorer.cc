@@ -151,6 +151,14 @@ struct SfScorer::Impl {
     }
   }
 
+  // One joint state in agent order as a [1][D] input (the *ForTest probes).
+  torch::Tensor EncodeForTest(const int32_t* state) const {
+    std::vector<float> x(encoder.state_dim());
+    int order[env::kMaxAgents];
+    for (int a = 0; a < n; ++a) order[a] = a;
+    encoder.EncodeState(state, order, x.data());
+    return torch::tensor(x).unsqueeze(0);
+  }
   void ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
   void ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
 
@@ -307,31 +315,16 @@ void SfScorer::FillStats(v1::RewardStats* stats) const {
 
 absl::Status SfScorer::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
-  return SaveArchive(path, impl_->tag, [&](torch::serialize::OutputArchive& archive) {
-    if (impl_->joint) impl_->joint->Write(archive, "joint.");
-    if (impl_->local) impl_->local->Write(archive, "local.");
-    archive.write("requests", torch::tensor(impl_->requests, torch::kInt64));
-  });
+  return SaveModels(path, impl_->tag, impl_->joint, impl_->local, "requests", impl_->requests);
 }
 
 absl::Status SfScorer::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
-  return LoadArchive(path, impl_->tag, [&](torch::serialize::InputArchive& archive) {
-    std::optional<SfModel> joint, local;
-    if (impl_->joint) {
-      joint.emplace(impl_->encoder.state_dim(), impl_->sf);
-      joint->Read(archive, "joint.");
-    }
-    if (impl_->local) {
-      local.emplace(impl_->encoder.local_state_dim(impl_->config.permutation == Permutation::kOff), impl_->sf);
-      local->Read(archive, "local.");
-    }
-    torch::Tensor requests;
-    archive.read("requests", requests);
-    impl_->joint.swap(joint);
-    impl_->local.swap(local);
-    impl_->requests = requests.item<int64_t>();
-  });
+  Impl& impl = *impl_;
+  const bool with_id = impl.config.permutation == Permutation::kOff;
+  return LoadModels<SfModel>(
+      path, impl.tag, &impl.joint, &impl.local, [&] { return SfModel(impl.encoder.state_dim(), impl.sf); },
+      [&] { return SfModel(impl.encoder.local_state_dim(with_id), impl.sf); }, "requests", &impl.requests);
 }
 
 absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
@@ -350,22 +343,14 @@ absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const
 
 std::vector<float> SfScorer::PhiForTest(const int32_t* state) const {
   absl::MutexLock lock(&impl_->mu);
-  std::vector<float> x(impl_->encoder.state_dim());
-  int order[env::kMaxAgents];
-  for (int a = 0; a < impl_->n; ++a) order[a] = a;
-  impl_->encoder.EncodeState(state, order, x.data());
   torch::NoGradGuard no_grad;
-  const torch::Tensor y = impl_->joint->phi->forward(torch::tensor(x).unsqueeze(0)).squeeze(0).contiguous();
+  const torch::Tensor y = impl_->joint->phi->forward(impl_->EncodeForTest(state)).squeeze(0).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
 }
 
 std::vector<float> SfScorer::PsiForTest(const int32_t* state) const {
   absl::MutexLock lock(&impl_->mu);
-  std::vector<float> x(impl_->encoder.state_dim());
-  int order[env::kMaxAgents];
-  for (int a = 0; a < impl_->n; ++a) order[a] = a;
-  impl_->encoder.EncodeState(state, order, x.data());
-  const torch::Tensor y = impl_->joint->Psi(torch::tensor(x).unsqueeze(0)).squeeze(0).contiguous();
+  const torch::Tensor y = impl_->joint->Psi(impl_->EncodeForTest(state)).squeeze(0).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
 }
 

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,42 @@ absl::Status SaveArchive(const std::string& path, const std::string& tag,
 // FAILED_PRECONDITION (other tag), DATA_LOSS (missing or bad entries).
 absl::Status LoadArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::InputArchive&)>& read);
+// The learned scorers' snapshot: an optional joint and an optional local
+// model (each with Write/Read(archive, prefix)) and one counter, under `tag`.
+// Load reads into fresh models from `make_joint` / `make_local` and swaps them
+// in only when everything was read. Errors: as SaveArchive / LoadArchive.
+template <typename Model>
+absl::Status SaveModels(const std::string& path, const std::string& tag, const std::optional<Model>& joint,
+                        const std::optional<Model>& local, const std::string& counter_name, int64_t counter) {
+  return SaveArchive(path, tag, [&](torch::serialize::OutputArchive& archive) {
+    if (joint) joint->Write(archive, "joint.");
+    if (local) local->Write(archive, "local.");
+    archive.write(counter_name, torch::tensor(counter, torch::kInt64));
+  });
+}
+template <typename Model>
+absl::Status LoadModels(const std::string& path, const std::string& tag, std::optional<Model>* joint,
+                        std::optional<Model>* local, const std::function<Model()>& make_joint,
+                        const std::function<Model()>& make_local, const std::string& counter_name,
+                        int64_t* counter) {
+  return LoadArchive(path, tag, [&](torch::serialize::InputArchive& archive) {
+    std::optional<Model> fresh_joint, fresh_local;
+    if (*joint) {
+      fresh_joint.emplace(make_joint());
+      fresh_joint->Read(archive, "joint.");
+    }
+    if (*local) {
+      fresh_local.emplace(make_local());
+      fresh_local->Read(archive, "local.");
+    }
+    torch::Tensor count;
+    archive.read(counter_name, count);
+    joint->swap(fresh_joint);
+    local->swap(fresh_local);
+    *counter = count.item<int64_t>();
+  });
+}
+
 // Sets layer `layer` of `mlp` to weight [out][in] and bias [out].
 // Errors: INVALID_ARGUMENT on a bad layer or shape.
 absl::Status SetLinear(Mlp& mlp, int layer, const std::vector<float>& weight, const std::vector<float>& bias);

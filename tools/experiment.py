@@ -214,10 +214,6 @@ def default_jobs():
     return max(1, (os.cpu_count() or 2) // 2)
 
 
-def fmt_duration(seconds):
-    return launch.fmt_duration(seconds)
-
-
 def run_cells(cells, out, jobs):
     """Runs the unfinished cells, `jobs` at a time. Returns False if interrupted."""
     todo = []
@@ -262,9 +258,9 @@ def run_cells(cells, out, jobs):
                     status = f"success {summary['final_success_rate']:.0%}"
                 elapsed = time.time() - started
                 left = len(todo) + len(running)
-                eta = elapsed / completed * left / 1 if completed else 0
+                eta = elapsed / completed * left if completed else 0
                 print(f"[{done_before + completed}/{len(cells)}] {cell_id(cell)}: {status} "
-                      f"({time.time() - t0:.0f} s); ETA {fmt_duration(eta)}", file=sys.stderr, flush=True)
+                      f"({time.time() - t0:.0f} s); ETA {launch.fmt_duration(eta)}", file=sys.stderr, flush=True)
     finally:
         for _, _, proc, _ in running:
             if proc.poll() is None:

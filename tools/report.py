@@ -11,6 +11,8 @@ import os
 import shutil
 import statistics
 
+import launch  # tools/ is on sys.path (tools/experiment.py)
+
 # Two-sided 95% Student t quantiles by degrees of freedom (1..30).
 T95 = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145,
        2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048,
@@ -27,11 +29,7 @@ def mean_ci(values):
 
 
 def read_metrics(run_dir):
-    try:
-        with open(os.path.join(run_dir, "metrics.csv")) as f:
-            return list(csv.DictReader(f))
-    except OSError:
-        return []
+    return launch.read_metrics(os.path.join(run_dir, "metrics.csv"))
 
 
 def groups_of(cells, summaries, method, cell_id):
