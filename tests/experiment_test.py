@@ -74,8 +74,6 @@ class ExperimentRunTest(unittest.TestCase):
             time.sleep(0.5)  # The second cell is starting or running.
             proc.send_signal(signal.SIGINT)
             _, err = proc.communicate(timeout=240)
-            if proc.returncode == 0:
-                self.skipTest("the second cell finished before the interrupt")  # Too fast to interrupt.
             self.assertEqual(proc.returncode, 130, err)
             self.assertIn("the same command resumes", err)
 
