@@ -3,6 +3,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <functional>
+#include <string>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
@@ -18,7 +20,7 @@ ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address 
 ABSL_FLAG(int, envs, 16, "environments stepped together");
 ABSL_FLAG(int, unroll_length, 64, "steps per unroll");
 ABSL_FLAG(int, eval_envs, 2, "evaluation environments (same policy, not trained on)");
-ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and pid)");
+ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and --actor_id)");
 ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
 ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
 ABSL_FLAG(std::string, trace_file, "",
@@ -49,8 +51,10 @@ int main(int argc, char** argv) {
   config.eval_envs = absl::GetFlag(FLAGS_eval_envs);
   config.seed = absl::GetFlag(FLAGS_seed);
   if (config.seed == 0) {
-    config.seed = static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()) ^
-                  (static_cast<uint64_t>(getpid()) << 32);
+    // The id (hostname:pid by default) tells replicas apart where every
+    // container's pid is 1; the clock tells restarts apart.
+    config.seed = static_cast<uint64_t>(std::chrono::system_clock::now().time_since_epoch().count()) ^
+                  std::hash<std::string>{}(id);
   }
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
   config.trace_file = absl::GetFlag(FLAGS_trace_file);

@@ -400,15 +400,19 @@ absl::Status Learner::SaveCheckpoint() {
   return absl::OkStatus();
 }
 
-absl::Status Learner::Restore(const std::string& checkpoint_dir) {
+absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir) {
   std::vector<fs::path> metas;
   std::error_code error;
   for (const auto& entry : fs::directory_iterator(checkpoint_dir, error)) {
     if (entry.path().extension() == ".meta") metas.push_back(entry.path());
   }
   if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
-  std::sort(metas.begin(), metas.end());
-  std::ifstream meta(metas.back());
+  return std::max_element(metas.begin(), metas.end())->string();
+}
+
+absl::Status Learner::Restore(const std::string& checkpoint_dir) {
+  IMCA_ASSIGN_OR_RETURN(const std::string meta_path, NewestCheckpoint(checkpoint_dir));
+  std::ifstream meta(meta_path);
   std::string key;
   int64_t version = -1, env_steps = -1, iteration = 0;
   double wall = 0;
@@ -419,9 +423,9 @@ absl::Status Learner::Restore(const std::string& checkpoint_dir) {
     else if (key == "iteration") meta >> iteration;
   }
   if (version < 0 || env_steps < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("bad checkpoint metadata ", metas.back().string()));
+    return absl::InvalidArgumentError(absl::StrCat("bad checkpoint metadata ", meta_path));
   }
-  fs::path pt = metas.back();
+  fs::path pt = meta_path;
   pt.replace_extension(".pt");
   IMCA_RETURN_IF_ERROR(trainer_->Load(pt.string()));
   iteration_ = iteration;

@@ -122,6 +122,10 @@ class Learner {
   double last_intrinsic_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
+// The metadata file of checkpoint_dir's newest checkpoint, the one Restore()
+// reads. Errors: NOT_FOUND if the directory holds none (or does not exist).
+absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir);
+
 }  // namespace imca::learner
 
 #endif  // IMCA_LEARNER_LEARNER_H_

@@ -1,5 +1,6 @@
 // The learner: wires flags to a Learner and serves LearnerService.
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
@@ -17,6 +18,9 @@ ABSL_FLAG(std::string, listen, "127.0.0.1:50052", "host:port to serve on (port 0
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
 ABSL_FLAG(std::string, run_dir, "", "run folder for metrics.csv and checkpoints/");
 ABSL_FLAG(std::string, resume, "", "checkpoint directory to resume from");
+ABSL_FLAG(bool, auto_resume, false,
+          "resume from <run_dir>/checkpoints if it holds a checkpoint, else start fresh "
+          "(for restarts under docker-compose or Kubernetes)");
 ABSL_FLAG(int64_t, steps, 2000000, "budget in joint env steps (0: until stopped)");
 ABSL_FLAG(int64_t, batch_steps, 4096, "joint env steps per PPO iteration");
 ABSL_FLAG(int, epochs, 4, "PPO epochs per iteration");
@@ -73,7 +77,14 @@ int main(int argc, char** argv) {
   config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
   auto learner = learner::Learner::Create(scenario->get(), config);
   if (!learner.ok()) return Fail(std::string(learner.status().message()));
-  if (const std::string resume = absl::GetFlag(FLAGS_resume); !resume.empty()) {
+  std::string resume = absl::GetFlag(FLAGS_resume);
+  if (absl::GetFlag(FLAGS_auto_resume)) {
+    if (!resume.empty()) return Fail("--auto_resume and --resume exclude each other");
+    if (config.run_dir.empty()) return Fail("--auto_resume needs --run_dir");
+    const std::string checkpoints = (std::filesystem::path(config.run_dir) / "checkpoints").string();
+    if (learner::NewestCheckpoint(checkpoints).ok()) resume = checkpoints;
+  }
+  if (!resume.empty()) {
     if (absl::Status restored = (*learner)->Restore(resume); !restored.ok()) {
       return Fail(absl::StrCat("--resume: ", restored.message()));
     }

@@ -1,0 +1,288 @@
+#!/usr/bin/python3
+"""deploy/: the docker-compose file and the Kubernetes manifests train for real.
+
+No Docker engine or cluster runs here, so each deployment is checked in two
+ways. Statically: every address an actor dials is a Service (or compose
+service) that routes to the port its server listens on, probes hit that port,
+every state path lies on a mounted volume, and the three services agree on the
+scenario. Dynamically: the services are started as local processes with
+exactly the deployment's flags, except what only a cluster provides (addresses
+become loopback ports, mount paths a temporary folder, the budget a small
+one); they must train to the budget and exit cleanly, the reward server must
+leave its snapshot, and a restarted learner must continue from its checkpoint.
+"""
+import os
+import re
+import shlex
+import signal
+import subprocess
+import tempfile
+import time
+import unittest
+
+import yaml
+
+ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
+COMPOSE = os.path.join(ROOT, "deploy", "docker-compose.yml")
+K8S_DIR = os.path.join(ROOT, "deploy", "k8s")
+BINARIES = ("reward_server", "learner", "actor")
+
+
+class Service:
+    """One process of a deployment: its binary, flags and volume mounts."""
+
+    def __init__(self, name, command, mounts, replicas=1):
+        self.name = name
+        self.binary = os.path.basename(command[0])
+        self.args = list(command[1:])
+        self.mounts = mounts          # container paths of mounted volumes
+        self.replicas = replicas
+
+    def flag(self, name):
+        values = [a.split("=", 1)[1] for a in self.args if a.startswith(f"--{name}=")]
+        return values[-1] if values else None
+
+
+def flags_of(binary):
+    """The flag names a binary accepts, from its --helpfull."""
+    out = subprocess.run([os.path.join(BIN, binary), "--helpfull"], capture_output=True, text=True, timeout=30)
+    return set(re.findall(r"^\s+--([a-z_0-9]+)", out.stdout + out.stderr, re.M))
+
+
+def load_compose():
+    with open(COMPOSE) as f:
+        doc = yaml.safe_load(f)
+    services = {}
+    for name, spec in doc["services"].items():
+        command = spec["command"]
+        command = shlex.split(command) if isinstance(command, str) else command
+        mounts = [v.split(":")[1] for v in spec.get("volumes", [])]
+        replicas = spec.get("deploy", {}).get("replicas", 1)
+        services[name] = Service(name, command, mounts, replicas)
+    return doc, services
+
+
+def load_k8s():
+    with open(os.path.join(K8S_DIR, "kustomization.yaml")) as f:
+        kustomization = yaml.safe_load(f)
+    docs = []
+    for resource in kustomization["resources"]:
+        with open(os.path.join(K8S_DIR, resource)) as f:
+            docs += [d for d in yaml.safe_load_all(f) if d]
+    return kustomization, docs
+
+
+def pod_templates(docs):
+    """(workload doc, container) for every container of a Deployment or Job."""
+    for doc in docs:
+        if doc["kind"] in ("Deployment", "Job"):
+            for container in doc["spec"]["template"]["spec"]["containers"]:
+                yield doc, container
+
+
+def k8s_services(docs):
+    services = {}
+    for doc, c in pod_templates(docs):
+        command = c.get("command", []) + c.get("args", [])
+        mounts = [m["mountPath"] for m in c.get("volumeMounts", [])]
+        replicas = doc["spec"].get("replicas", doc["spec"].get("parallelism", 1))
+        services[doc["metadata"]["name"]] = Service(doc["metadata"]["name"], command, mounts, replicas)
+    return services
+
+
+def read(path):
+    with open(path) as f:
+        return f.read()
+
+
+def listen_port(service):
+    return int(service.flag("listen").rsplit(":", 1)[1])
+
+
+def under_mount(path, mounts):
+    return any(path == m or path.startswith(m.rstrip("/") + "/") for m in mounts)
+
+
+class Deployment:
+    """Runs a deployment's services as local processes over loopback."""
+
+    def __init__(self, services, tmp):
+        self.by_binary = {}
+        for s in services.values():
+            self.by_binary.setdefault(s.binary, []).append(s)
+        self.tmp = tmp
+        self.ports = {}
+        self.env = dict(os.environ, IMCA_MAP_DIR=os.path.join(ROOT, "maps"))
+
+    def local_args(self, service, steps):
+        """The service's flags with cluster paths, addresses and budget made local."""
+        out = []
+        for arg in service.args:
+            name, _, value = arg[2:].partition("=")
+            if name == "listen":
+                arg = f"--listen=127.0.0.1:0"
+                out.append(f"--port_file={os.path.join(self.tmp, service.binary + '.port')}")
+            elif name in ("learner", "reward_server"):
+                arg = f"--{name}=127.0.0.1:{self.ports[name]}"
+            elif name == "steps":
+                arg = f"--steps={steps}"
+            elif value.startswith("/"):
+                arg = f"--{name}={self.tmp}{value}"
+            out.append(arg)
+        for mount in service.mounts:
+            os.makedirs(self.tmp + mount, exist_ok=True)
+        return out
+
+    def start(self, binary, steps=None, index=0):
+        service = self.by_binary[binary][0]
+        port_file = os.path.join(self.tmp, binary + ".port")
+        if os.path.exists(port_file):
+            os.remove(port_file)
+        with open(os.path.join(self.tmp, f"{binary}-{index}.log"), "w") as log:
+            proc = subprocess.Popen([os.path.join(BIN, binary)] + self.local_args(service, steps), stdout=log,
+                                    stderr=subprocess.STDOUT, env=self.env)
+        if service.flag("listen"):
+            deadline = time.time() + 60
+            while not (os.path.exists(port_file) and read(port_file).strip()):
+                if proc.poll() is not None or time.time() > deadline:
+                    raise AssertionError(f"{binary} did not start: {self.log(binary, index)}")
+                time.sleep(0.05)
+            self.ports[binary] = int(read(port_file))
+        return proc
+
+    def log(self, binary, index=0):
+        return read(os.path.join(self.tmp, f"{binary}-{index}.log"))
+
+    def metrics_rows(self, run_dir):
+        with open(os.path.join(self.tmp + run_dir, "metrics.csv")) as f:
+            return len(f.read().strip().splitlines()) - 1
+
+
+class DeployTestBase:
+    """Checks shared by the compose file and the Kubernetes manifests."""
+
+    services = {}
+
+    def test_every_flag_is_one_the_binary_defines(self):
+        for s in self.services.values():
+            self.assertIn(s.binary, BINARIES, s.name)
+            known = flags_of(s.binary)
+            for arg in s.args:
+                self.assertRegex(arg, r"^--[a-z_0-9]+(=|$)", f"{s.name}: {arg}")
+                self.assertIn(arg[2:].split("=")[0], known, f"{s.name}: {arg}")
+
+    def test_services_agree_on_the_scenario_and_keep_state_on_volumes(self):
+        scenarios = {s.flag("scenario") for s in self.services.values()}
+        self.assertEqual(len(scenarios), 1, scenarios)
+        for s in self.services.values():
+            for name in ("run_dir", "snapshot"):
+                if s.flag(name):
+                    self.assertTrue(under_mount(s.flag(name), s.mounts), f"{s.name}: --{name} not on a volume")
+
+    def test_trains_to_the_budget_and_restarts_from_state(self):
+        by_binary = {s.binary: s for s in self.services.values()}
+        run_dir = by_binary["learner"].flag("run_dir")
+        snapshot = by_binary["reward_server"].flag("snapshot")
+        with tempfile.TemporaryDirectory() as tmp:
+            d = Deployment(self.services, tmp)
+            reward = d.start("reward_server")
+            learner = d.start("learner", steps=8192)
+            actors = [d.start("actor", index=i) for i in range(by_binary["actor"].replicas)]
+            try:
+                self.assertEqual(learner.wait(timeout=180), 0, d.log("learner"))
+                for i, a in enumerate(actors):
+                    self.assertEqual(a.wait(timeout=60), 0, d.log("actor", i))
+                rows = d.metrics_rows(run_dir)
+                self.assertGreaterEqual(rows, 2)
+                # A restarted learner (a crash, a rescheduled pod) goes on from its checkpoint.
+                self.assertIn("--auto_resume", by_binary["learner"].args)
+                learner = d.start("learner", steps=16384, index=1)
+                actors = [d.start("actor", index=i) for i in range(by_binary["actor"].replicas)]
+                self.assertEqual(learner.wait(timeout=180), 0, d.log("learner", 1))
+                self.assertIn("resumed at policy version", d.log("learner", 1))
+                self.assertGreater(d.metrics_rows(run_dir), rows)
+                for i, a in enumerate(actors):
+                    self.assertEqual(a.wait(timeout=60), 0, d.log("actor", i))
+                reward.send_signal(signal.SIGTERM)
+                self.assertEqual(reward.wait(timeout=60), 0, d.log("reward_server"))
+                self.assertGreater(os.path.getsize(tmp + snapshot), 0)
+            finally:
+                for p in [reward, learner] + actors:
+                    if p.poll() is None:
+                        p.kill()
+                        p.wait()
+
+
+class ComposeTest(DeployTestBase, unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.doc, cls.services = load_compose()
+
+    def test_actors_dial_the_services_listen_ports(self):
+        by_binary = {s.binary: s for s in self.services.values()}
+        for target in ("learner", "reward_server"):
+            host, port = by_binary["actor"].flag(target).rsplit(":", 1)
+            self.assertIn(host, self.services, f"actor --{target}")
+            self.assertEqual(int(port), listen_port(self.services[host]), f"actor --{target}")
+
+
+class KubernetesTest(DeployTestBase, unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.kustomization, cls.docs = load_k8s()
+        cls.services = k8s_services(cls.docs)
+
+    def test_actors_dial_services_that_route_to_the_listen_port(self):
+        services = {d["metadata"]["name"]: d for d in self.docs if d["kind"] == "Service"}
+        actor = next(s for s in self.services.values() if s.binary == "actor")
+        for target in ("learner", "reward_server"):
+            host, port = actor.flag(target).rsplit(":", 1)
+            self.assertIn(host, services, f"actor --{target}: no Service {host}")
+            svc = services[host]["spec"]
+            ports = [p for p in svc["ports"] if p["port"] == int(port)]
+            self.assertEqual(len(ports), 1, f"Service {host} has no port {port}")
+            selected = [(doc, c) for doc, c in pod_templates(self.docs)
+                        if svc["selector"].items() <= doc["spec"]["template"]["metadata"]["labels"].items()]
+            self.assertEqual(len(selected), 1, f"Service {host} selects {len(selected)} workloads")
+            doc, container = selected[0]
+            target_port = ports[0]["targetPort"]
+            container_ports = {p.get("name"): p["containerPort"] for p in container["ports"]}
+            number = container_ports[target_port] if isinstance(target_port, str) else target_port
+            self.assertIn(number, container_ports.values())
+            self.assertEqual(number, listen_port(self.services[doc["metadata"]["name"]]), host)
+            for probe in ("readinessProbe", "livenessProbe"):
+                if probe in container:
+                    self.assertEqual(container[probe]["grpc"]["port"], number, f"{host} {probe}")
+
+    def test_workloads_select_their_pods_and_claims_exist(self):
+        claims = {d["metadata"]["name"] for d in self.docs if d["kind"] == "PersistentVolumeClaim"}
+        images = set()
+        for doc in self.docs:
+            if doc["kind"] not in ("Deployment", "Job"):
+                continue
+            spec, pod = doc["spec"], doc["spec"]["template"]["spec"]
+            if doc["kind"] == "Deployment":
+                self.assertLessEqual(spec["selector"]["matchLabels"].items(),
+                                     spec["template"]["metadata"]["labels"].items(), doc["metadata"]["name"])
+            else:
+                self.assertIn(pod["restartPolicy"], ("OnFailure", "Never"), doc["metadata"]["name"])
+            volumes = {v["name"]: v for v in pod.get("volumes", [])}
+            for c in pod["containers"]:
+                images.add(c["image"])
+                for m in c.get("volumeMounts", []):
+                    self.assertIn(m["name"], volumes)
+                    self.assertIn(volumes[m["name"]]["persistentVolumeClaim"]["claimName"], claims)
+        self.assertEqual(images, {i["name"] for i in self.kustomization["images"]})
+
+    def test_the_reward_server_is_a_single_writer(self):
+        deployments = [d for d in self.docs if d["kind"] == "Deployment"]
+        reward = [d for d in deployments
+                  if d["spec"]["template"]["spec"]["containers"][0]["command"] == ["reward_server"]]
+        self.assertEqual(len(reward), 1)
+        self.assertEqual(reward[0]["spec"]["replicas"], 1)
+        self.assertEqual(reward[0]["spec"]["strategy"]["type"], "Recreate")
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
