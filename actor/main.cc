@@ -23,6 +23,9 @@ ABSL_FLAG(int, eval_envs, 2, "evaluation environments (same policy, not trained 
 ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and --actor_id)");
 ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
 ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
+ABSL_FLAG(int, signal_exit_code, 0,
+          "exit code when SIGINT/SIGTERM stops the actor before the learner is done (Kubernetes "
+          "Jobs: 143, so that an evicted actor is replaced rather than counted as finished)");
 ABSL_FLAG(std::string, trace_file, "",
           "if set, write env 0's newest finished training episode with its credit shares here (CSV)");
 
@@ -58,6 +61,8 @@ int main(int argc, char** argv) {
   }
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
   config.trace_file = absl::GetFlag(FLAGS_trace_file);
+  const int signal_exit_code = absl::GetFlag(FLAGS_signal_exit_code);
+  if (signal_exit_code < 0 || signal_exit_code > 255) return fail("--signal_exit_code must be in [0, 255]");
   if (config.num_envs < 1) return fail("--envs must be >= 1");
   if (config.unroll_length < 1) return fail("--unroll_length must be >= 1");
   if (config.eval_envs < 0) return fail("--eval_envs must be >= 0");
@@ -72,5 +77,5 @@ int main(int argc, char** argv) {
   if (!status.ok()) return fail(std::string(status.message()));
   std::fprintf(stderr, "%s: stopped after %lld unrolls\n", id.c_str(),
                static_cast<long long>(actor.unrolls_pushed()));
-  return 0;
+  return ShutdownRequested() ? signal_exit_code : 0;
 }

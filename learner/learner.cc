@@ -406,6 +406,10 @@ absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir) 
   for (const auto& entry : fs::directory_iterator(checkpoint_dir, error)) {
     if (entry.path().extension() == ".meta") metas.push_back(entry.path());
   }
+  if (error && error != std::errc::no_such_file_or_directory) {
+    // Unreadable is not "no checkpoint": starting fresh would lose the run.
+    return absl::InternalError(absl::StrCat("cannot read ", checkpoint_dir, ": ", error.message()));
+  }
   if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
   return std::max_element(metas.begin(), metas.end())->string();
 }

@@ -123,7 +123,8 @@ class Learner {
 };
 
 // The metadata file of checkpoint_dir's newest checkpoint, the one Restore()
-// reads. Errors: NOT_FOUND if the directory holds none (or does not exist).
+// reads. Errors: NOT_FOUND if the directory holds none (or does not exist),
+// INTERNAL if it cannot be read.
 absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir);
 
 }  // namespace imca::learner

@@ -38,6 +38,11 @@ ABSL_FLAG(int, queue_capacity, 4, "unrolls waiting for training before PushUnrol
 ABSL_FLAG(int, checkpoint_every, 50, "iterations between checkpoints");
 ABSL_FLAG(uint64_t, seed, 1, "seed of network initialisation and minibatch shuffling");
 ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads");
+ABSL_FLAG(double, linger_seconds, 2,
+          "after the budget, keep serving this long so that actors in backoff learn it is done");
+ABSL_FLAG(int, signal_exit_code, 0,
+          "exit code when SIGINT/SIGTERM stops training before the budget (Kubernetes Jobs: 143, "
+          "so that an evicted learner is replaced rather than counted as finished)");
 
 namespace {
 
@@ -53,6 +58,10 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
 
+  if (absl::GetFlag(FLAGS_linger_seconds) < 0) return Fail("--linger_seconds must be >= 0");
+  if (const int code = absl::GetFlag(FLAGS_signal_exit_code); code < 0 || code > 255) {
+    return Fail("--signal_exit_code must be in [0, 255]");
+  }
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
 
@@ -82,7 +91,12 @@ int main(int argc, char** argv) {
     if (!resume.empty()) return Fail("--auto_resume and --resume exclude each other");
     if (config.run_dir.empty()) return Fail("--auto_resume needs --run_dir");
     const std::string checkpoints = (std::filesystem::path(config.run_dir) / "checkpoints").string();
-    if (learner::NewestCheckpoint(checkpoints).ok()) resume = checkpoints;
+    const absl::StatusOr<std::string> newest = learner::NewestCheckpoint(checkpoints);
+    if (newest.ok()) {
+      resume = checkpoints;
+    } else if (!absl::IsNotFound(newest.status())) {
+      return Fail(absl::StrCat("--auto_resume: ", newest.status().message()));
+    }
   }
   if (!resume.empty()) {
     if (absl::Status restored = (*learner)->Restore(resume); !restored.ok()) {
@@ -115,7 +129,10 @@ int main(int argc, char** argv) {
   watcher.join();
   // After the budget, keep answering for a moment so that actors learn it is
   // done (OUT_OF_RANGE on push, done in GetStatus) instead of retrying.
-  for (int i = 0; i < 40 && run.ok() && (*learner)->Status().done() && !ShutdownRequested(); ++i) {
+  const auto linger_end = std::chrono::steady_clock::now() +
+                          std::chrono::duration<double>(absl::GetFlag(FLAGS_linger_seconds));
+  while (run.ok() && (*learner)->Status().done() && !ShutdownRequested() &&
+         std::chrono::steady_clock::now() < linger_end) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(3)));
@@ -124,5 +141,5 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "learner: stopped at %lld env steps, policy version %lld\n",
                static_cast<long long>(status.env_steps()),
                static_cast<long long>(status.policy_version()));
-  return 0;
+  return status.done() ? 0 : absl::GetFlag(FLAGS_signal_exit_code);
 }

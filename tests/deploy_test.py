@@ -27,6 +27,8 @@ BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 COMPOSE = os.path.join(ROOT, "deploy", "docker-compose.yml")
 K8S_DIR = os.path.join(ROOT, "deploy", "k8s")
 BINARIES = ("reward_server", "learner", "actor")
+# common/scenario_flags.cc: every process must build the same scenario.
+SCENARIO_FLAGS = ("scenario", "map", "num_agents", "step_limit", "success_reward", "step_penalty", "view_radius")
 
 
 class Service:
@@ -63,14 +65,21 @@ def load_compose():
     return doc, services
 
 
-def load_k8s():
-    with open(os.path.join(K8S_DIR, "kustomization.yaml")) as f:
+def load_kustomization(directory):
+    with open(os.path.join(directory, "kustomization.yaml")) as f:
         kustomization = yaml.safe_load(f)
     docs = []
     for resource in kustomization["resources"]:
-        with open(os.path.join(K8S_DIR, resource)) as f:
+        with open(os.path.join(directory, resource)) as f:
             docs += [d for d in yaml.safe_load_all(f) if d]
     return kustomization, docs
+
+
+def load_k8s():
+    """The workloads' kustomization and the separately applied volumes."""
+    kustomization, docs = load_kustomization(K8S_DIR)
+    _, volumes = load_kustomization(os.path.join(K8S_DIR, "volumes"))
+    return kustomization, docs, volumes
 
 
 def pod_templates(docs):
@@ -121,7 +130,8 @@ class Deployment:
         for arg in service.args:
             name, _, value = arg[2:].partition("=")
             if name == "listen":
-                arg = f"--listen=127.0.0.1:0"
+                # A restarted server keeps its address, as behind a Service.
+                arg = f"--listen=127.0.0.1:{self.ports.get(service.binary, 0)}"
                 out.append(f"--port_file={os.path.join(self.tmp, service.binary + '.port')}")
             elif name in ("learner", "reward_server"):
                 arg = f"--{name}=127.0.0.1:{self.ports[name]}"
@@ -173,8 +183,9 @@ class DeployTestBase:
                 self.assertIn(arg[2:].split("=")[0], known, f"{s.name}: {arg}")
 
     def test_services_agree_on_the_scenario_and_keep_state_on_volumes(self):
-        scenarios = {s.flag("scenario") for s in self.services.values()}
-        self.assertEqual(len(scenarios), 1, scenarios)
+        for name in SCENARIO_FLAGS:
+            values = {s.flag(name) for s in self.services.values()}
+            self.assertEqual(len(values), 1, f"--{name} differs between services: {values}")
         for s in self.services.values():
             for name in ("run_dir", "snapshot"):
                 if s.flag(name):
@@ -182,33 +193,69 @@ class DeployTestBase:
 
     def test_trains_to_the_budget_and_restarts_from_state(self):
         by_binary = {s.binary: s for s in self.services.values()}
-        run_dir = by_binary["learner"].flag("run_dir")
+        learner_flags = by_binary["learner"]
+        run_dir = learner_flags.flag("run_dir")
         snapshot = by_binary["reward_server"].flag("snapshot")
+        self.assertIn("--auto_resume", learner_flags.args)
+        signal_code = int(learner_flags.flag("signal_exit_code") or 0)
+        self.assertNotEqual(signal_code, 0, "a learner stopped early must not look finished")
+        self.assertEqual(by_binary["actor"].flag("signal_exit_code"), learner_flags.flag("signal_exit_code"))
         with tempfile.TemporaryDirectory() as tmp:
             d = Deployment(self.services, tmp)
-            reward = d.start("reward_server")
-            learner = d.start("learner", steps=8192)
-            actors = [d.start("actor", index=i) for i in range(by_binary["actor"].replicas)]
+            procs = []
+
+            def start(binary, **kwargs):
+                procs.append(d.start(binary, **kwargs))
+                return procs[-1]
+
+            def actors():
+                return [start("actor", index=i) for i in range(by_binary["actor"].replicas)]
+
+            def finish(learner, index, group):
+                # Actors exit 0 once told the budget is done; the lingering
+                # learner then exits 0 on SIGTERM, the budget being done.
+                for i, a in enumerate(group):
+                    self.assertEqual(a.wait(timeout=180), 0, d.log("actor", i) + d.log("learner", index))
+                learner.send_signal(signal.SIGTERM)
+                self.assertEqual(learner.wait(timeout=60), 0, d.log("learner", index))
+
             try:
-                self.assertEqual(learner.wait(timeout=180), 0, d.log("learner"))
-                for i, a in enumerate(actors):
-                    self.assertEqual(a.wait(timeout=60), 0, d.log("actor", i))
+                reward = start("reward_server")
+                learner = start("learner", steps=8192)
+                finish(learner, 0, actors())
                 rows = d.metrics_rows(run_dir)
                 self.assertGreaterEqual(rows, 2)
-                # A restarted learner (a crash, a rescheduled pod) goes on from its checkpoint.
-                self.assertIn("--auto_resume", by_binary["learner"].args)
-                learner = d.start("learner", steps=16384, index=1)
-                actors = [d.start("actor", index=i) for i in range(by_binary["actor"].replicas)]
-                self.assertEqual(learner.wait(timeout=180), 0, d.log("learner", 1))
+
+                # An eviction mid-run: SIGTERM before the budget exits non-zero
+                # (so Kubernetes or compose start it again) after a checkpoint.
+                learner = start("learner", steps=10_000_000, index=1)
+                group = actors()
+                deadline = time.time() + 120
+                while d.metrics_rows(run_dir) < rows + 2:
+                    self.assertLess(time.time(), deadline, d.log("learner", 1))
+                    time.sleep(0.2)
+                learner.send_signal(signal.SIGTERM)
+                self.assertEqual(learner.wait(timeout=60), signal_code, d.log("learner", 1))
                 self.assertIn("resumed at policy version", d.log("learner", 1))
+
+                # Its replacement resumes while the same actors reconnect.
+                rows = d.metrics_rows(run_dir)
+                steps = int(read(os.path.join(tmp + run_dir, "metrics.csv")).strip().splitlines()[-1].split(",")[1])
+                learner = start("learner", steps=steps + 16384, index=2)
+                finish(learner, 2, group)
+                self.assertIn("resumed at policy version", d.log("learner", 2))
                 self.assertGreater(d.metrics_rows(run_dir), rows)
-                for i, a in enumerate(actors):
-                    self.assertEqual(a.wait(timeout=60), 0, d.log("actor", i))
+
+                # The reward server snapshots on SIGTERM and starts from it.
                 reward.send_signal(signal.SIGTERM)
                 self.assertEqual(reward.wait(timeout=60), 0, d.log("reward_server"))
                 self.assertGreater(os.path.getsize(tmp + snapshot), 0)
+                reward = start("reward_server", index=1)
+                self.assertIn("resumed from", d.log("reward_server", 1))
+                reward.send_signal(signal.SIGTERM)
+                self.assertEqual(reward.wait(timeout=60), 0, d.log("reward_server", 1))
             finally:
-                for p in [reward, learner] + actors:
+                for p in procs:
                     if p.poll() is None:
                         p.kill()
                         p.wait()
@@ -230,7 +277,7 @@ class ComposeTest(DeployTestBase, unittest.TestCase):
 class KubernetesTest(DeployTestBase, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.kustomization, cls.docs = load_k8s()
+        cls.kustomization, cls.docs, cls.volumes = load_k8s()
         cls.services = k8s_services(cls.docs)
 
     def test_actors_dial_services_that_route_to_the_listen_port(self):
@@ -248,6 +295,8 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
             doc, container = selected[0]
             target_port = ports[0]["targetPort"]
             container_ports = {p.get("name"): p["containerPort"] for p in container["ports"]}
+            if isinstance(target_port, str):
+                self.assertIn(target_port, container_ports, f"Service {host}: no container port named so")
             number = container_ports[target_port] if isinstance(target_port, str) else target_port
             self.assertIn(number, container_ports.values())
             self.assertEqual(number, listen_port(self.services[doc["metadata"]["name"]]), host)
@@ -256,7 +305,10 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                     self.assertEqual(container[probe]["grpc"]["port"], number, f"{host} {probe}")
 
     def test_workloads_select_their_pods_and_claims_exist(self):
-        claims = {d["metadata"]["name"] for d in self.docs if d["kind"] == "PersistentVolumeClaim"}
+        # The claims live apart so that deleting the workloads keeps the state.
+        self.assertFalse([d for d in self.docs if d["kind"] == "PersistentVolumeClaim"])
+        claims = {d["metadata"]["name"] for d in self.volumes if d["kind"] == "PersistentVolumeClaim"}
+        mounted = []
         images = set()
         for doc in self.docs:
             if doc["kind"] not in ("Deployment", "Job"):
@@ -270,10 +322,23 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
             volumes = {v["name"]: v for v in pod.get("volumes", [])}
             for c in pod["containers"]:
                 images.add(c["image"])
+                self.assertEqual(c.get("imagePullPolicy"), "IfNotPresent", doc["metadata"]["name"])
                 for m in c.get("volumeMounts", []):
                     self.assertIn(m["name"], volumes)
-                    self.assertIn(volumes[m["name"]]["persistentVolumeClaim"]["claimName"], claims)
+                    claim = volumes[m["name"]]["persistentVolumeClaim"]["claimName"]
+                    self.assertIn(claim, claims)
+                    mounted.append(claim)
         self.assertEqual(images, {i["name"] for i in self.kustomization["images"]})
+        # ReadWriteOnce: one workload per claim.
+        self.assertEqual(sorted(mounted), sorted(set(mounted)))
+
+    def test_actor_job_has_no_completion_count(self):
+        # Work-queue style: the Job ends when the actors exit after the budget,
+        # and parallelism can be changed while it runs.
+        jobs = [d for d in self.docs if d["kind"] == "Job"
+                and d["spec"]["template"]["spec"]["containers"][0]["command"] == ["actor"]]
+        self.assertEqual(len(jobs), 1)
+        self.assertNotIn("completions", jobs[0]["spec"])
 
     def test_the_reward_server_is_a_single_writer(self):
         deployments = [d for d in self.docs if d["kind"] == "Deployment"]
