@@ -54,6 +54,13 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
                                            featurizer.global_dim() + scenario->num_agents(),
                                            scenario->num_actions()));
   auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(trainer)));
+  if (config.max_batch_bytes < 1) return absl::InvalidArgumentError("max_batch_bytes must be >= 1");
+  if (const int64_t bytes = learner->IterationBytes(config.batch_steps); bytes > config.max_batch_bytes) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "batch_steps: an iteration of %d steps needs %.0f MB of features here, over the memory cap of %.0f MB "
+        "(max_batch_bytes, --max_batch_mb)",
+        config.batch_steps, bytes / 1e6, config.max_batch_bytes / 1e6));
+  }
   if (!config.run_dir.empty()) {
     std::error_code error;
     fs::create_directories(fs::path(config.run_dir) / "checkpoints", error);
@@ -69,8 +76,26 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config,
                  std::unique_ptr<PpoTrainer> trainer)
     : scenario_(scenario), config_(config), featurizer_(*scenario), trainer_(std::move(trainer)) {}
 
+int64_t Learner::IterationBytes(int64_t steps) const {
+  const int64_t per_step = int64_t{scenario_->num_agents()} *
+                           (featurizer_.obs_dim() + featurizer_.global_dim() + scenario_->num_agents());
+  return 4 * steps * per_step * static_cast<int64_t>(sizeof(float));
+}
+
 absl::Status Learner::Push(v1::Unroll unroll) {
-  if (absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true}); !valid.ok()) {
+  absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true});
+  if (valid.ok()) {
+    // A batch gathers unrolls until it holds batch_steps, so the largest is
+    // batch_steps - 1 steps plus this unroll.
+    const int64_t steps = int64_t{unroll.length()} * unroll.num_envs();
+    if (const int64_t bytes = IterationBytes(config_.batch_steps - 1 + steps); bytes > config_.max_batch_bytes) {
+      valid = absl::InvalidArgumentError(absl::StrFormat(
+          "unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of features here, "
+          "over the learner's cap of %.0f MB (use fewer envs or a shorter unroll)",
+          steps, bytes / 1e6, config_.max_batch_bytes / 1e6));
+    }
+  }
+  if (!valid.ok()) {
     absl::MutexLock lock(&mu_);
     ++unrolls_rejected_;
     return valid;

@@ -66,6 +66,31 @@ TEST_F(LearnerTest, RejectsBadUnrollsWithTheFieldName) {
   EXPECT_EQ((*learner)->Status().unrolls_received(), 0);
 }
 
+TEST_F(LearnerTest, CapsTheBatchFeatureMemory) {
+  auto probe = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(probe.ok()) << probe.status();
+  const int64_t per_step = (*probe)->IterationBytes(1);
+  EXPECT_EQ((*probe)->IterationBytes(10), 10 * per_step);
+  probe->reset();
+
+  config_.max_batch_bytes = per_step * config_.batch_steps - 1;
+  auto too_small = Learner::Create(scenario_.get(), config_);
+  EXPECT_EQ(too_small.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(too_small.status().message(), HasSubstr("batch_steps"));
+
+  // Room for batch_steps - 1 steps plus one 16x16 unroll, not a 16x32 one.
+  config_.max_batch_bytes = per_step * (config_.batch_steps - 1 + 16 * 16);
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  EXPECT_TRUE((*learner)->Push(Unroll(0, 1)).ok());
+  v1::Unroll big = testing::RandomUnroll(*scenario_, 16, 32, 2);
+  const absl::Status status = (*learner)->Push(big);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("unroll.length * unroll.num_envs = 512 steps"));
+  EXPECT_EQ((*learner)->Status().unrolls_received(), 1);
+  EXPECT_EQ((*learner)->Status().unrolls_rejected(), 1);
+}
+
 TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   config_.budget_steps = 3 * 256;
   auto learner = Learner::Create(scenario_.get(), config_);

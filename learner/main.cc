@@ -38,6 +38,8 @@ ABSL_FLAG(int, queue_capacity, 4, "unrolls waiting for training before PushUnrol
 ABSL_FLAG(int, checkpoint_every, 50, "iterations between checkpoints");
 ABSL_FLAG(uint64_t, seed, 1, "seed of network initialisation and minibatch shuffling");
 ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads");
+ABSL_FLAG(int64_t, max_batch_mb, 8192,
+          "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(double, linger_seconds, 2,
           "after the budget, keep serving this long so that actors in backoff learn it is done");
 ABSL_FLAG(int, signal_exit_code, 0,
@@ -84,6 +86,10 @@ int main(int argc, char** argv) {
   config.budget_steps = absl::GetFlag(FLAGS_steps);
   config.run_dir = absl::GetFlag(FLAGS_run_dir);
   config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
+  if (absl::GetFlag(FLAGS_max_batch_mb) < 1 || absl::GetFlag(FLAGS_max_batch_mb) > (int64_t{1} << 30)) {
+    return Fail("--max_batch_mb must be in [1, 2^30]");
+  }
+  config.max_batch_bytes = absl::GetFlag(FLAGS_max_batch_mb) * 1000 * 1000;
   auto learner = learner::Learner::Create(scenario->get(), config);
   if (!learner.ok()) return Fail(std::string(learner.status().message()));
   std::string resume = absl::GetFlag(FLAGS_resume);

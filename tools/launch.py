@@ -61,6 +61,8 @@ def parse_args(argv):
     p.add_argument("--unroll-length", type=positive_int, default=64)
     p.add_argument("--steps", type=positive_int, default=2_000_000, help="budget in joint env steps")
     p.add_argument("--batch-steps", type=positive_int, default=8192, help="joint env steps per PPO iteration")
+    p.add_argument("--max-batch-mb", type=positive_int, default=8192,
+                   help="learner's cap on an iteration's feature memory (docs/learner.md)")
     p.add_argument("--lr", type=float, default=5e-4)
     p.add_argument("--entropy-coef", type=float, default=0.01)
     p.add_argument("--intrinsic-coef", type=float, default=1.0)
@@ -281,7 +283,7 @@ def run(args):
         ln = services.start("learner", [
             os.path.join(BIN, "learner"), f"--listen=127.0.0.1:{args.learner_port}",
             f"--port_file={learner_port_file}", *scenario_flags, f"--run_dir={run_dir}",
-            f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--lr={args.lr}",
+            f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}", f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
             f"--seed={args.seed}"] + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
         learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)
