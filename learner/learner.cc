@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -79,7 +80,10 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config,
 int64_t Learner::IterationBytes(int64_t steps) const {
   const int64_t per_step = int64_t{scenario_->num_agents()} *
                            (featurizer_.obs_dim() + featurizer_.global_dim() + scenario_->num_agents());
-  return 4 * steps * per_step * static_cast<int64_t>(sizeof(float));
+  const int64_t bytes_per_step = 4 * per_step * static_cast<int64_t>(sizeof(float));
+  // Saturates instead of overflowing for absurd step counts.
+  if (steps > std::numeric_limits<int64_t>::max() / bytes_per_step) return std::numeric_limits<int64_t>::max();
+  return steps * bytes_per_step;
 }
 
 absl::Status Learner::Push(v1::Unroll unroll) {

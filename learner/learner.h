@@ -39,7 +39,7 @@ struct LearnerConfig {
   // trainer's copy of them; see Learner::IterationBytes). Create() rejects a
   // batch_steps over it and Push() an unroll that would push a batch over it,
   // so a large map with large unrolls is an error, not an out-of-memory kill.
-  int64_t max_batch_bytes = int64_t{8} << 30;
+  int64_t max_batch_bytes = int64_t{8192} * 1000 * 1000;  // --max_batch_mb 8192
 };
 
 // The learner's domain logic, independent of gRPC: a bounded queue of

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <thread>
 
 #include "common/env.h"
@@ -71,6 +72,7 @@ TEST_F(LearnerTest, CapsTheBatchFeatureMemory) {
   ASSERT_TRUE(probe.ok()) << probe.status();
   const int64_t per_step = (*probe)->IterationBytes(1);
   EXPECT_EQ((*probe)->IterationBytes(10), 10 * per_step);
+  EXPECT_EQ((*probe)->IterationBytes(int64_t{1} << 62), std::numeric_limits<int64_t>::max());
   probe->reset();
 
   config_.max_batch_bytes = per_step * config_.batch_steps - 1;

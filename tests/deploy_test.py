@@ -319,6 +319,13 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                                      spec["template"]["metadata"]["labels"].items(), doc["metadata"]["name"])
             else:
                 self.assertIn(pod["restartPolicy"], ("OnFailure", "Never"), doc["metadata"]["name"])
+                # An evicted pod exits with the signal code: replaced, but not
+                # counted towards backoffLimit.
+                rules = spec.get("podFailurePolicy", {}).get("rules", [])
+                self.assertIn({"action": "Ignore", "onPodConditions": [{"type": "DisruptionTarget"}]}, rules,
+                              doc["metadata"]["name"])
+                if rules:
+                    self.assertEqual(pod["restartPolicy"], "Never", "podFailurePolicy needs restartPolicy Never")
             volumes = {v["name"]: v for v in pod.get("volumes", [])}
             for c in pod["containers"]:
                 images.add(c["image"])
