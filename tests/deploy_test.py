@@ -14,8 +14,8 @@ leave its snapshot, and a restarted learner must continue from its checkpoint.
 import os
 import re
 import shlex
-import signal
 import subprocess
+import sys
 import tempfile
 import time
 import unittest
@@ -24,6 +24,10 @@ import yaml
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+import launch  # noqa: E402  (the launcher's process handling)
+
+os.environ["IMCA_MAP_DIR"] = os.path.join(ROOT, "maps")  # The services' children inherit it.
 COMPOSE = os.path.join(ROOT, "deploy", "docker-compose.yml")
 K8S_DIR = os.path.join(ROOT, "deploy", "k8s")
 BINARIES = ("reward_server", "learner", "actor")
@@ -62,7 +66,7 @@ def load_compose():
         mounts = [v.split(":")[1] for v in spec.get("volumes", [])]
         replicas = spec.get("deploy", {}).get("replicas", 1)
         services[name] = Service(name, command, mounts, replicas)
-    return doc, services
+    return services
 
 
 def load_kustomization(directory):
@@ -100,6 +104,11 @@ def k8s_services(docs):
     return services
 
 
+def by_binary(services):
+    """{binary: Service}; a deployment runs each binary as one service."""
+    return {s.binary: s for s in services.values()}
+
+
 def read(path):
     with open(path) as f:
         return f.read()
@@ -114,15 +123,14 @@ def under_mount(path, mounts):
 
 
 class Deployment:
-    """Runs a deployment's services as local processes over loopback."""
+    """A deployment's services as local processes over loopback, started and
+    stopped by the launcher's own process handling (tools/launch.py)."""
 
     def __init__(self, services, tmp):
-        self.by_binary = {}
-        for s in services.values():
-            self.by_binary.setdefault(s.binary, []).append(s)
+        self.by_binary = by_binary(services)
         self.tmp = tmp
         self.ports = {}
-        self.env = dict(os.environ, IMCA_MAP_DIR=os.path.join(ROOT, "maps"))
+        self.procs = launch.Services(tmp)  # Logs in tmp/logs/<name>.log.
 
     def local_args(self, service, steps):
         """The service's flags with cluster paths, addresses and budget made local."""
@@ -144,29 +152,26 @@ class Deployment:
             os.makedirs(self.tmp + mount, exist_ok=True)
         return out
 
-    def start(self, binary, steps=None, index=0):
-        service = self.by_binary[binary][0]
+    def start(self, name, binary, steps=None):
+        """Starts `binary` as process `name` (its log's name); waits until it serves."""
+        service = self.by_binary[binary]
         port_file = os.path.join(self.tmp, binary + ".port")
         if os.path.exists(port_file):
             os.remove(port_file)
-        with open(os.path.join(self.tmp, f"{binary}-{index}.log"), "w") as log:
-            proc = subprocess.Popen([os.path.join(BIN, binary)] + self.local_args(service, steps), stdout=log,
-                                    stderr=subprocess.STDOUT, env=self.env)
+        proc = self.procs.start(name, [os.path.join(BIN, binary)] + self.local_args(service, steps))
         if service.flag("listen"):
-            deadline = time.time() + 60
-            while not (os.path.exists(port_file) and read(port_file).strip()):
-                if proc.poll() is not None or time.time() > deadline:
-                    raise AssertionError(f"{binary} did not start: {self.log(binary, index)}")
-                time.sleep(0.05)
-            self.ports[binary] = int(read(port_file))
+            self.ports[binary] = self.procs.wait_port(name, proc, port_file, timeout=60)
         return proc
 
-    def log(self, binary, index=0):
-        return read(os.path.join(self.tmp, f"{binary}-{index}.log"))
+    def stop(self, name):
+        """SIGTERM, then the exit code."""
+        return self.procs.stop([name], timeout=60)[name]
 
-    def metrics_rows(self, run_dir):
-        with open(os.path.join(self.tmp + run_dir, "metrics.csv")) as f:
-            return len(f.read().strip().splitlines()) - 1
+    def log(self, name):
+        return read(os.path.join(self.tmp, "logs", name + ".log"))
+
+    def metrics(self, run_dir):
+        return launch.read_metrics(os.path.join(self.tmp + run_dir, "metrics.csv"))
 
 
 class DeployTestBase:
@@ -192,84 +197,75 @@ class DeployTestBase:
                     self.assertTrue(under_mount(s.flag(name), s.mounts), f"{s.name}: --{name} not on a volume")
 
     def test_trains_to_the_budget_and_restarts_from_state(self):
-        by_binary = {s.binary: s for s in self.services.values()}
-        learner_flags = by_binary["learner"]
+        services = by_binary(self.services)
+        learner_flags = services["learner"]
         run_dir = learner_flags.flag("run_dir")
-        snapshot = by_binary["reward_server"].flag("snapshot")
+        snapshot = services["reward_server"].flag("snapshot")
         self.assertIn("--auto_resume", learner_flags.args)
         signal_code = int(learner_flags.flag("signal_exit_code") or 0)
         self.assertNotEqual(signal_code, 0, "a learner stopped early must not look finished")
-        self.assertEqual(by_binary["actor"].flag("signal_exit_code"), learner_flags.flag("signal_exit_code"))
+        self.assertEqual(services["actor"].flag("signal_exit_code"), learner_flags.flag("signal_exit_code"))
         with tempfile.TemporaryDirectory() as tmp:
             d = Deployment(self.services, tmp)
-            procs = []
 
-            def start(binary, **kwargs):
-                procs.append(d.start(binary, **kwargs))
-                return procs[-1]
+            def actors(group):
+                names = [f"actor-{group}-{i}" for i in range(services["actor"].replicas)]
+                for name in names:
+                    d.start(name, "actor")
+                return names
 
-            def actors():
-                return [start("actor", index=i) for i in range(by_binary["actor"].replicas)]
-
-            def finish(learner, index, group):
+            def finish(learner, group):
                 # Actors exit 0 once told the budget is done; the lingering
                 # learner then exits 0 on SIGTERM, the budget being done.
-                for i, a in enumerate(group):
-                    self.assertEqual(a.wait(timeout=180), 0, d.log("actor", i) + d.log("learner", index))
-                learner.send_signal(signal.SIGTERM)
-                self.assertEqual(learner.wait(timeout=60), 0, d.log("learner", index))
+                for name in group:
+                    proc = dict(d.procs.procs)[name]
+                    self.assertEqual(proc.wait(timeout=180), 0, d.log(name) + d.log(learner))
+                self.assertEqual(d.stop(learner), 0, d.log(learner))
 
             try:
-                reward = start("reward_server")
-                learner = start("learner", steps=8192)
-                finish(learner, 0, actors())
-                rows = d.metrics_rows(run_dir)
+                d.start("reward_server-0", "reward_server")
+                d.start("learner-0", "learner", steps=8192)
+                finish("learner-0", actors(0))
+                rows = len(d.metrics(run_dir))
                 self.assertGreaterEqual(rows, 2)
 
                 # An eviction mid-run: SIGTERM before the budget exits non-zero
-                # (so Kubernetes or compose start it again) after a checkpoint.
-                learner = start("learner", steps=10_000_000, index=1)
-                group = actors()
+                # (so Kubernetes starts it again) after a checkpoint.
+                d.start("learner-1", "learner", steps=10_000_000)
+                group = actors(1)
                 deadline = time.time() + 120
-                while d.metrics_rows(run_dir) < rows + 2:
-                    self.assertLess(time.time(), deadline, d.log("learner", 1))
+                while len(d.metrics(run_dir)) < rows + 2:
+                    self.assertLess(time.time(), deadline, d.log("learner-1"))
                     time.sleep(0.2)
-                learner.send_signal(signal.SIGTERM)
-                self.assertEqual(learner.wait(timeout=60), signal_code, d.log("learner", 1))
-                self.assertIn("resumed at policy version", d.log("learner", 1))
+                self.assertEqual(d.stop("learner-1"), signal_code, d.log("learner-1"))
+                self.assertIn("resumed at policy version", d.log("learner-1"))
 
                 # Its replacement resumes while the same actors reconnect.
-                rows = d.metrics_rows(run_dir)
-                steps = int(read(os.path.join(tmp + run_dir, "metrics.csv")).strip().splitlines()[-1].split(",")[1])
-                learner = start("learner", steps=steps + 16384, index=2)
-                finish(learner, 2, group)
-                self.assertIn("resumed at policy version", d.log("learner", 2))
-                self.assertGreater(d.metrics_rows(run_dir), rows)
+                metrics = d.metrics(run_dir)
+                d.start("learner-2", "learner", steps=int(metrics[-1]["env_steps"]) + 16384)
+                finish("learner-2", group)
+                self.assertIn("resumed at policy version", d.log("learner-2"))
+                self.assertGreater(len(d.metrics(run_dir)), len(metrics))
 
                 # The reward server snapshots on SIGTERM and starts from it.
-                reward.send_signal(signal.SIGTERM)
-                self.assertEqual(reward.wait(timeout=60), 0, d.log("reward_server"))
+                self.assertEqual(d.stop("reward_server-0"), 0, d.log("reward_server-0"))
                 self.assertGreater(os.path.getsize(tmp + snapshot), 0)
-                reward = start("reward_server", index=1)
-                self.assertIn("resumed from", d.log("reward_server", 1))
-                reward.send_signal(signal.SIGTERM)
-                self.assertEqual(reward.wait(timeout=60), 0, d.log("reward_server", 1))
+                d.start("reward_server-1", "reward_server")
+                self.assertIn("resumed from", d.log("reward_server-1"))
+                self.assertEqual(d.stop("reward_server-1"), 0, d.log("reward_server-1"))
             finally:
-                for p in procs:
-                    if p.poll() is None:
-                        p.kill()
-                        p.wait()
+                d.procs.stop(timeout=5)
 
 
 class ComposeTest(DeployTestBase, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.doc, cls.services = load_compose()
+        cls.services = load_compose()
 
     def test_actors_dial_the_services_listen_ports(self):
-        by_binary = {s.binary: s for s in self.services.values()}
+        actor = by_binary(self.services)["actor"]
         for target in ("learner", "reward_server"):
-            host, port = by_binary["actor"].flag(target).rsplit(":", 1)
+            host, port = actor.flag(target).rsplit(":", 1)
             self.assertIn(host, self.services, f"actor --{target}")
             self.assertEqual(int(port), listen_port(self.services[host]), f"actor --{target}")
 

@@ -1,7 +1,6 @@
 #!/usr/bin/python3
 """./imca experiment (tools/experiment.py) against the real binaries."""
 import csv
-import hashlib
 import json
 import os
 import signal
@@ -13,8 +12,16 @@ import unittest
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXPERIMENT = [sys.executable, os.path.join(ROOT, "tools", "experiment.py")]
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from experiment import cell_id  # noqa: E402  (where a cell's run folder is)
+
 SMALL = {"actors": 1, "envs-per-actor": 8, "unroll-length": 32, "batch-steps": 1024}
-FLAGS_DIGEST = "f" + hashlib.sha1(json.dumps(SMALL, sort_keys=True).encode()).hexdigest()[:8]
+
+
+def cell_dir(out, credit):
+    cell = {"scenario": "coop_nav", "reward": "count", "credit": credit, "permutation": "off", "seed": 1,
+            "steps": 16000, "flags": SMALL}
+    return os.path.join(out, "cells", cell_id(cell))
 
 
 def grid_file(directory, entries, name="tiny"):
@@ -65,7 +72,7 @@ class ExperimentRunTest(unittest.TestCase):
                         "steps": 16000, "flags": SMALL}]
             out = os.path.join(tmp, "out")
             argv = EXPERIMENT + ["--grid", grid_file(tmp, entries), "--out", out, "--jobs", "1"]
-            first_cell = os.path.join(out, "cells", "coop_nav-count-shared-off-s1-16k-" + FLAGS_DIGEST, "summary.json")
+            first_cell = os.path.join(cell_dir(out, "shared"), "summary.json")
             proc = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
             deadline = time.time() + 240
             while not os.path.exists(first_cell) and time.time() < deadline and proc.poll() is None:
@@ -90,7 +97,7 @@ class ExperimentRunTest(unittest.TestCase):
             for name in ["table.csv", "curves-coop_nav-count.png", "shares-coop_nav-count.png",
                          "gifs/coop_nav-count-imca.gif", "grid.json"]:
                 self.assertTrue(os.path.exists(os.path.join(out, name)), name)
-            trace = os.path.join(out, "cells", "coop_nav-count-imca-off-s1-16k-" + FLAGS_DIGEST, "credit_trace.csv")
+            trace = os.path.join(cell_dir(out, "imca"), "credit_trace.csv")
             with open(trace) as f:
                 rows = list(csv.DictReader(f))
             self.assertGreater(len(rows), 0)

@@ -119,13 +119,7 @@ def expand(entries, where):
                     raise ExperimentError(f"{name}: {key} must be {'an integer >= 0' if key == 'seed' else 'a positive integer'}, got {v!r}")
         for combo in itertools.product(*(values[k] for k in AXES)):
             cells.append(dict(zip(AXES, combo), flags=dict(flags)))
-    seen = set()
-    unique = []
-    for cell in cells:
-        cid = cell_id(cell)
-        if cid not in seen:
-            seen.add(cid)
-            unique.append(cell)
+    unique = list({cell_id(cell): cell for cell in cells}.values())  # Grid order, each cell once.
     if not unique:
         raise ExperimentError(f"{where}: the grid has no cells")
     return unique
@@ -138,24 +132,21 @@ def flags_text(flags):
 def labeller(cells):
     """method(cell) -> row label: credit, imca's permutation, and those extra
     flags that differ between cells of the same scenario and reward."""
-    keys = {}
+    def settings(cell):
+        return dict(cell["flags"], steps=cell["steps"])
+
+    by_pair = {}
     for cell in cells:
-        keys.setdefault((cell["scenario"], cell["reward"]), {"steps"}).update(cell["flags"])
-    varying = {}
-    for cell in cells:
-        pair = (cell["scenario"], cell["reward"])
-        group = varying.setdefault(pair, {})
-        settings = dict(cell["flags"], steps=cell["steps"])
-        for key in keys[pair]:
-            group.setdefault(key, set()).add(json.dumps(settings.get(key)))
+        by_pair.setdefault((cell["scenario"], cell["reward"]), []).append(settings(cell))
+    # Per scenario and reward: the settings whose value (or absence) differs.
+    varying = {pair: {key for key in set().union(*group) if len({json.dumps(s.get(key)) for s in group}) > 1}
+               for pair, group in by_pair.items()}
 
     def method(cell):
         label = cell["credit"]
         if cell["permutation"] != "off":
             label += f"/{cell['permutation']}"
-        group = varying[(cell["scenario"], cell["reward"])]
-        settings = dict(cell["flags"], steps=cell["steps"])
-        shown = {k: v for k, v in settings.items() if len(group.get(k, ())) > 1}
+        shown = {k: v for k, v in settings(cell).items() if k in varying[(cell["scenario"], cell["reward"])]}
         return label + (" " + flags_text(shown) if shown else "")
 
     return method

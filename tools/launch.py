@@ -283,7 +283,8 @@ def run(args):
         ln = services.start("learner", [
             os.path.join(BIN, "learner"), f"--listen=127.0.0.1:{args.learner_port}",
             f"--port_file={learner_port_file}", *scenario_flags, f"--run_dir={run_dir}",
-            f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}", f"--lr={args.lr}",
+            f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}",
+            f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
             f"--seed={args.seed}"] + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
         learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)

@@ -48,13 +48,13 @@ def fmt_pct(m, h):
     return f"{m:.0%} [{max(0.0, m - h):.0%}, {min(1.0, m + h):.0%}]"
 
 
-def fmt_steps(values, total):
-    reached = [v for v in values if v is not None]
+def fmt_steps(row, pct):
+    reached, total = row[f"reached_{pct}"], row["seeds_done"]
     if not reached:
         return f"- (0/{total})"
-    m, h = mean_ci(reached)
+    m, h = row[f"steps_to_{pct}_mean"], row[f"steps_to_{pct}_ci95"]
     text = f"{m / 1e6:.2f}M" + ("" if h is None else f" ± {h / 1e6:.2f}M")
-    return f"{text} ({len(reached)}/{total})"
+    return f"{text} ({reached}/{total})"
 
 
 def write(out, cells, summaries, method, cell_id):
@@ -69,12 +69,10 @@ def write(out, cells, summaries, method, cell_id):
             m, h = mean_ci([s["final_success_rate"] for _, s in done])
             row.update(success_mean=m, success_ci95=h)
             for pct in (80, 90):
-                reached = [s[f"steps_to_{pct}pct_success"] for _, s in done]
-                hits = [v for v in reached if v is not None]
-                row[f"steps_to_{pct}_mean"] = statistics.mean(hits) if hits else None
-                row[f"steps_to_{pct}_ci95"] = mean_ci(hits)[1] if hits else None
+                hits = [s[f"steps_to_{pct}pct_success"] for _, s in done
+                        if s[f"steps_to_{pct}pct_success"] is not None]
+                row[f"steps_to_{pct}_mean"], row[f"steps_to_{pct}_ci95"] = mean_ci(hits) if hits else (None, None)
                 row[f"reached_{pct}"] = len(hits)
-                row[f"_steps{pct}"] = reached
             row["wall_seconds_mean"] = statistics.mean(s["wall_seconds"] for _, s in done)
         rows.append(row)
     write_table_csv(out, rows)
@@ -102,10 +100,9 @@ def write_table_csv(out, rows):
               "steps_to_80_mean", "steps_to_80_ci95", "reached_80", "steps_to_90_mean", "steps_to_90_ci95",
               "reached_90", "wall_seconds_mean"]
     with open(os.path.join(out, "table.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
-        for row in rows:
-            w.writerow(row)
+        w.writerows(rows)
 
 
 def write_table_md(out, rows):
@@ -118,7 +115,7 @@ def write_table_md(out, rows):
         lines.append(
             f"| {r['scenario']} | {r['reward']} | {r['method']} | {r['seeds_done']}/{r['seeds']} "
             f"| {fmt_pct(r['success_mean'], r['success_ci95'])} "
-            f"| {fmt_steps(r['_steps80'], r['seeds_done'])} | {fmt_steps(r['_steps90'], r['seeds_done'])} "
+            f"| {fmt_steps(r, 80)} | {fmt_steps(r, 90)} "
             f"| {r['wall_seconds_mean']:.0f} s |")
     lines.append("")
     lines.append("Budget per run in env steps: " + ", ".join(
@@ -233,20 +230,19 @@ def read_trace(run_dir):
 def trace_panel(ax, trace, n):
     """p^a over the steps of one episode; a dot where agent a entered a cell it
     had not visited earlier in the episode (its exploring moves)."""
-    seen = [set() for _ in range(n)]
     on_new, on_old = [], []
     for a in range(n):
         rows = [r for r in trace if int(r["agent"]) == a]
-        if rows:
-            seen[a].add(rows[0]["cell"])  # Where the agent starts is not a new cell.
+        # Where the agent starts is not a new cell.
+        seen = {rows[0]["cell"]} if rows else set()
         t = [int(r["t"]) for r in rows]
         p = [float(r["share"]) for r in rows]
         line, = ax.plot(t, p, lw=1.0, label=f"agent {a + 1}")
         new_t, new_p = [], []
         for r in rows:
             cell = r["next_cell"]
-            if cell not in seen[a]:
-                seen[a].add(cell)
+            if cell not in seen:
+                seen.add(cell)
                 new_t.append(int(r["t"]))
                 new_p.append(float(r["share"]))
                 on_new.append(float(r["share"]))
