@@ -67,6 +67,45 @@ bool Actor::RefreshPolicy(bool wait) {
   return false;
 }
 
+bool Actor::AwaitPolicy(int64_t min_version) {
+  // Each poll waits on the learner for at most half the deadline.
+  const int wait_ms = static_cast<int>(std::clamp<int64_t>(config_.rpc_timeout.count() / 2, 1, 5000));
+  Backoff backoff;
+  while (!ShutdownRequested()) {
+    grpc::ClientContext context;
+    context.set_deadline(DeadlineIn(config_.rpc_timeout));
+    v1::GetPolicyRequest request;
+    request.set_min_version(min_version);
+    request.set_wait_ms(wait_ms);
+    v1::Policy policy;
+    const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
+    if (!status.ok()) {
+      if (LearnerDone()) return false;
+      backoff.Wait();
+      continue;
+    }
+    backoff.Reset();
+    if (policy.tensors_size() == 0) {
+      if (policy_.has_value() && policy.version() < policy_->version()) {
+        policy_.reset();  // The learner went back to an older checkpoint.
+        return RefreshPolicy(/*wait=*/true);
+      }
+      if (LearnerDone()) return false;
+      continue;
+    }
+    absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
+    if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() || mlp->num_actions() != scenario_->num_actions()) {
+      policy_error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ",
+                                                       mlp.ok() ? "observation or action size differs"
+                                                                : mlp.status().message()));
+      return false;
+    }
+    policy_ = *std::move(mlp);
+    return true;
+  }
+  return false;
+}
+
 void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
                           float* probs) {
   const int n = scenario_->num_agents(), k = scenario_->state_size(), a_count = scenario_->num_actions();
@@ -220,6 +259,7 @@ absl::Status Actor::Run() {
     if (status.ok()) status = Push(&unroll);
     if (status.ok()) {
       ++unrolls_pushed_;
+      ++version_unrolls_;
       backoff.Reset();
     } else if (absl::IsInvalidArgument(status)) {
       // A bug, not a transient fault: say so loudly and stop.
@@ -232,8 +272,19 @@ absl::Status Actor::Run() {
       if (LearnerDone()) break;
       backoff.Wait();
     }
-    RefreshPolicy(/*wait=*/false);
+    const int64_t acted = policy_.has_value() ? policy_->version() : -1;
+    if (config_.sync_unrolls > 0 && version_unrolls_ >= config_.sync_unrolls) {
+      // Synchronous: this version's share is delivered; act next with the
+      // policy the learner trains on it.
+      if (!AwaitPolicy(acted + 1)) {
+        if (!policy_error_.ok()) return policy_error_;
+        break;
+      }
+    } else {
+      RefreshPolicy(/*wait=*/false);
+    }
     if (!policy_error_.ok()) return policy_error_;
+    if (!policy_.has_value() || policy_->version() != acted) version_unrolls_ = 0;
   }
   CloseStream();
   if (!config_.trace_file.empty()) WriteTrace();

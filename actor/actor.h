@@ -35,6 +35,10 @@ struct ActorConfig {
   // atomically, at most every trace_period and when Run() returns.
   std::string trace_file;
   std::chrono::seconds trace_period{10};
+  // Synchronous collection (learner --synchronous): after this many unrolls
+  // acted with one policy version, wait for a newer version before acting
+  // again. 0: asynchronous, never wait.
+  int sync_unrolls = 0;
 };
 
 // Steps vectorised environments with a local copy of the newest policy, gets
@@ -58,6 +62,10 @@ class Actor {
   // Fetches a newer policy if there is one. With `wait`, retries until one
   // is available (or shutdown). Returns false if none is available.
   bool RefreshPolicy(bool wait);
+  // Blocks (long-polling GetPolicy) until the learner publishes a version
+  // >= min_version, or goes back to an older one (a restart from an older
+  // checkpoint). Returns false on shutdown or when the learner is done.
+  bool AwaitPolicy(int64_t min_version);
   void Rollout(v1::Unroll* unroll);
   void SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
                      float* probs);
@@ -85,6 +93,7 @@ class Actor {
   std::unique_ptr<grpc::ClientReaderWriter<v1::PushUnrollsRequest, v1::PushUnrollsResponse>> stream_;
   int stream_unrolls_ = 0;
   int64_t unrolls_pushed_ = 0;
+  int version_unrolls_ = 0;  // Unrolls pushed with the current policy version.
 
   // Scratch buffers, sized once.
   std::vector<float> obs_;

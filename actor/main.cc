@@ -26,6 +26,9 @@ ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
 ABSL_FLAG(int, signal_exit_code, 0,
           "exit code when SIGINT/SIGTERM stops the actor before the learner is done (Kubernetes "
           "Jobs: 143, so that an evicted actor is replaced rather than counted as finished)");
+ABSL_FLAG(int, sync_unrolls, 0,
+          "synchronous collection (learner --synchronous): act this many unrolls with each policy "
+          "version, then wait for the next version (0: asynchronous)");
 ABSL_FLAG(std::string, trace_file, "",
           "if set, write env 0's newest finished training episode with its credit shares here (CSV)");
 
@@ -66,6 +69,8 @@ int main(int argc, char** argv) {
   if (config.num_envs < 1) return fail("--envs must be >= 1");
   if (config.unroll_length < 1) return fail("--unroll_length must be >= 1");
   if (config.eval_envs < 0) return fail("--eval_envs must be >= 0");
+  config.sync_unrolls = absl::GetFlag(FLAGS_sync_unrolls);
+  if (config.sync_unrolls < 0) return fail("--sync_unrolls must be >= 0");
   if (int64_t{config.num_envs} * config.unroll_length > 65536) {
     return fail("--envs * --unroll_length must be <= 65536");
   }

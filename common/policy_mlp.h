@@ -11,8 +11,8 @@
 
 namespace imca {
 
-// Evaluates a published "mlp_tanh" Policy (see learner_service.proto) with
-// Eigen, so actors need no LibTorch. Not thread-safe (scratch buffers are
+// Evaluates a published "mlp_tanh" or "mlp_tanh_layernorm" Policy (see
+// learner_service.proto) with Eigen, so actors need no LibTorch. Not thread-safe (scratch buffers are
 // reused between calls to avoid allocation); copy it per thread.
 class PolicyMlp {
  public:
@@ -31,11 +31,22 @@ class PolicyMlp {
   void Probabilities(const float* obs, int batch, float* probs);
 
  private:
+  // y = LN(x) applied row-wise: (x - mean) / sqrt(var + eps) * gain + shift.
+  struct LayerNorm {
+    Eigen::RowVectorXf gain;
+    Eigen::RowVectorXf shift;
+  };
+  static void ApplyLayerNorm(const LayerNorm& norm, Eigen::Ref<Matrix> x);
+
   int64_t version_ = 0;
   int obs_dim_ = 0;
   int num_actions_ = 0;
   std::vector<Matrix> weights_;  // [out, in]
   std::vector<Eigen::RowVectorXf> biases_;
+  // "mlp_tanh_layernorm" only: on the input, and after each hidden tanh.
+  std::vector<LayerNorm> input_norm_;   // Empty or one.
+  std::vector<LayerNorm> hidden_norms_; // Empty or one per hidden layer.
+  Matrix normed_input_;
   std::vector<Matrix> scratch_;
 };
 

@@ -41,6 +41,30 @@ TEST(PolicyMlpTest, MatchesHandComputedSoftmax) {
   EXPECT_NEAR(probs[2], 1.0 / (1.0 + std::exp(1.0)), 1e-6);
 }
 
+TEST(PolicyMlpTest, LayerNormArchitectureMatchesHandComputation) {
+  // input_norm(gain 1, shift 0) -> W0 = I -> tanh -> norm(gain (2, 1), shift (0, 0.5)) -> W1 = I.
+  v1::Policy policy = TwoLayer();
+  policy.set_architecture("mlp_tanh_layernorm");
+  AddTensor(&policy, "policy.input_norm.weight", {2}, {1, 1});
+  AddTensor(&policy, "policy.input_norm.bias", {2}, {0, 0});
+  policy.mutable_tensors(0)->set_data(3, 1.0f);  // W0 = I.
+  AddTensor(&policy, "policy.0.norm.weight", {2}, {2, 1});
+  AddTensor(&policy, "policy.0.norm.bias", {2}, {0, 0.5});
+  auto mlp = PolicyMlp::FromProto(policy);
+  ASSERT_TRUE(mlp.ok()) << mlp.status();
+  const float obs[2] = {0.5f, 0.25f};
+  float probs[2];
+  mlp->Probabilities(obs, 1, probs);
+  // LN(0.5, 0.25): mean 0.375, var 0.015625 -> +-0.125 / sqrt(0.015625 + 1e-5).
+  const double z = 0.125 / std::sqrt(0.015625 + 1e-5);
+  const double h = std::tanh(z);  // tanh(z), tanh(-z): mean 0, var h^2.
+  const double n = h / std::sqrt(h * h + 1e-5);
+  const double l0 = 2 * n + 0.0, l1 = -n + 0.5 + 1.0;  // W1 = I, b1 = (0, 1).
+  EXPECT_NEAR(probs[0], std::exp(l0) / (std::exp(l0) + std::exp(l1)), 1e-5);
+  policy.mutable_tensors()->RemoveLast();  // policy.0.norm.bias
+  EXPECT_EQ(PolicyMlp::FromProto(policy).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(PolicyMlpTest, RejectsBrokenPolicies) {
   v1::Policy policy = TwoLayer();
   policy.set_architecture("transformer");

@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 constexpr char kMetricsHeader[] =
     "iteration,env_steps,wall_seconds,env_steps_per_sec,success_rate,train_success_rate,"
     "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
-    "policy_loss,value_loss,entropy,approx_kl,clip_fraction,global_reward,contribution_abs";
+    "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,global_reward,contribution_abs";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -40,6 +40,26 @@ int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); 
 
 }  // namespace
 
+std::string CriticInputName(CriticInput input) {
+  return input == CriticInput::kJointObs ? "joint_obs" : "state";
+}
+
+absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name) {
+  for (CriticInput c : {CriticInput::kState, CriticInput::kJointObs}) {
+    if (name == CriticInputName(c)) return c;
+  }
+  return absl::InvalidArgumentError(absl::StrCat("'", name, "' is not state or joint_obs"));
+}
+
+std::string TimeLimitName(TimeLimit limit) { return limit == TimeLimit::kTerminal ? "terminal" : "bootstrap"; }
+
+absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name) {
+  for (TimeLimit t : {TimeLimit::kBootstrap, TimeLimit::kTerminal}) {
+    if (name == TimeLimitName(t)) return t;
+  }
+  return absl::InvalidArgumentError(absl::StrCat("'", name, "' is not bootstrap or terminal"));
+}
+
 absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
                                                          const LearnerConfig& config) {
   if (config.batch_steps < 1) return absl::InvalidArgumentError("batch_steps must be >= 1");
@@ -50,9 +70,12 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
     return absl::InvalidArgumentError("gamma, gamma_int must be in (0,1] and lambda in [0,1]");
   }
   const env::Featurizer featurizer(*scenario);
+  const int n = scenario->num_agents();
+  const int critic_dim = (config.critic_input == CriticInput::kJointObs ? n * featurizer.obs_dim()
+                                                                         : featurizer.global_dim()) +
+                         n;
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<PpoTrainer> trainer,
-                        PpoTrainer::Create(config.ppo, featurizer.obs_dim(),
-                                           featurizer.global_dim() + scenario->num_agents(),
+                        PpoTrainer::Create(config.ppo, featurizer.obs_dim(), critic_dim,
                                            scenario->num_actions()));
   auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(trainer)));
   if (config.max_batch_bytes < 1) return absl::InvalidArgumentError("max_batch_bytes must be >= 1");
@@ -77,9 +100,10 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config,
                  std::unique_ptr<PpoTrainer> trainer)
     : scenario_(scenario), config_(config), featurizer_(*scenario), trainer_(std::move(trainer)) {}
 
+int Learner::critic_dim() const { return trainer_->critic_dim(); }
+
 int64_t Learner::IterationBytes(int64_t steps) const {
-  const int64_t per_step = int64_t{scenario_->num_agents()} *
-                           (featurizer_.obs_dim() + featurizer_.global_dim() + scenario_->num_agents());
+  const int64_t per_step = int64_t{scenario_->num_agents()} * (featurizer_.obs_dim() + critic_dim());
   const int64_t bytes_per_step = 4 * per_step * static_cast<int64_t>(sizeof(float));
   // Saturates instead of overflowing for absurd step counts.
   if (steps > std::numeric_limits<int64_t>::max() / bytes_per_step) return std::numeric_limits<int64_t>::max();
@@ -112,7 +136,19 @@ absl::Status Learner::Push(v1::Unroll unroll) {
     return absl::FailedPreconditionError(absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
                                                       " is newer than the learner's ", version_));
   }
-  if (version_ - unroll.policy_version() > config_.max_policy_lag) {
+  if (config_.synchronous) {
+    if (unroll.policy_version() != version_) {
+      ++unrolls_stale_;
+      return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
+                                                        " is not the synchronous learner's ", version_));
+    }
+    if (version_steps_ >= config_.batch_steps) {
+      ++unrolls_stale_;
+      return absl::FailedPreconditionError(absl::StrCat("stale: the batch of policy version ", version_,
+                                                        " is full (synchronous learner)"));
+    }
+    version_steps_ += Steps(unroll);
+  } else if (version_ - unroll.policy_version() > config_.max_policy_lag) {
     ++unrolls_stale_;
     return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
                                                       " is more than ", config_.max_policy_lag,
@@ -143,6 +179,21 @@ absl::Status Learner::StoppedStatus() const {
 
 std::shared_ptr<const v1::Policy> Learner::CurrentPolicy() const {
   absl::MutexLock lock(&mu_);
+  return policy_;
+}
+
+std::shared_ptr<const v1::Policy> Learner::WaitForPolicy(int64_t min_version, absl::Duration timeout) const {
+  struct Wanted {
+    const Learner* self;
+    int64_t min_version;
+  } wanted{this, min_version};
+  absl::MutexLock lock(&mu_);
+  mu_.AwaitWithTimeout(absl::Condition(
+                           +[](Wanted* w) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                             return w->self->stopping_ || w->self->version_ >= w->min_version;
+                           },
+                           &wanted),
+                       timeout);
   return policy_;
 }
 
@@ -216,17 +267,28 @@ absl::Status Learner::Run() {
   return SaveCheckpoint();
 }
 
-void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch) {
+void Learner::CriticInputOf(const int32_t* state, int agent, float* out) const {
+  const int n = scenario_->num_agents();
+  int features;
+  if (config_.critic_input == CriticInput::kJointObs) {
+    features = n * featurizer_.obs_dim();
+    for (int a = 0; a < n; ++a) featurizer_.Observe(state, a, out + a * featurizer_.obs_dim());
+  } else {
+    features = featurizer_.global_dim();
+    featurizer_.GlobalState(state, out);
+  }
+  std::fill(out + features, out + features + n, 0.0f);
+  out[features + agent] = 1.0f;
+}
+
+absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch) {
   const int n = scenario_->num_agents();
   const int k = scenario_->state_size();
   const int obs_dim = featurizer_.obs_dim();
-  const int global_dim = featurizer_.global_dim();
-  const int critic_dim = global_dim + n;
-  auto critic_input = [&](const int32_t* state, int agent, float* out) {
-    featurizer_.GlobalState(state, out);
-    std::fill(out + global_dim, out + critic_dim, 0.0f);
-    out[global_dim + agent] = 1.0f;
-  };
+  const int critic_dim = this->critic_dim();
+  const bool one_head = config_.ppo.value_heads == 1;
+  const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
+  auto critic_input = [&](const int32_t* state, int agent, float* out) { CriticInputOf(state, agent, out); };
   for (const v1::Unroll& u : unrolls) {
     const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
     // Critic inputs of states [T+1][E][n].
@@ -237,12 +299,12 @@ void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch
       }
     }
     std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
-    trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data());
+    IMCA_RETURN_IF_ERROR(trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data()));
     // GAE reads final values only at truncated steps: evaluate just those
     // reached states (a few per unroll, not all T*E of them).
     std::vector<int64_t> truncated_rows;
     for (int64_t row = 0; row < T * E; ++row) {
-      if (u.truncated(row)) truncated_rows.push_back(row);
+      if (u.truncated(row) && !u.terminated(row) && !limit_terminal) truncated_rows.push_back(row);
     }
     if (!truncated_rows.empty()) {
       const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
@@ -252,7 +314,7 @@ void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch
           critic_input(u.next_states().data() + truncated_rows[i] * k, a, &final_inputs[(i * n + a) * critic_dim]);
         }
       }
-      trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data());
+      IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data()));
       for (size_t i = 0; i < truncated_rows.size(); ++i) {
         for (int a = 0; a < n; ++a) {
           f_ext[truncated_rows[i] * n + a] = final_ext[i * n + a];
@@ -263,15 +325,26 @@ void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch
     std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
     for (int64_t row = 0; row < T * E; ++row) {
       for (int a = 0; a < n; ++a) {
-        terminated[row * n + a] = u.terminated(row);
-        truncated[row * n + a] = u.truncated(row);
+        // kTerminal: the step limit cuts the return like termination.
+        terminated[row * n + a] = u.terminated(row) || (limit_terminal && u.truncated(row));
+        truncated[row * n + a] = u.truncated(row) && !limit_terminal;
       }
     }
-    std::vector<float> adv_ext(B), ret_ext(B), adv_int(B), ret_int(B);
-    ComputeGae(T, M, u.rewards().data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
-               config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
-    ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
-               truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
+    std::vector<float> adv_ext(B), ret_ext(B), adv_int(B, 0.0f), ret_int(B, 0.0f);
+    if (one_head) {
+      // One value of r_ext + c_int * r_int, discounted with gamma.
+      std::vector<float> rewards(B);
+      for (int64_t i = 0; i < B; ++i) {
+        rewards[i] = u.rewards(i) + static_cast<float>(config_.intrinsic_coef) * u.intrinsic_rewards(i);
+      }
+      ComputeGae(T, M, rewards.data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
+                 config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
+    } else {
+      ComputeGae(T, M, u.rewards().data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
+                 config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
+      ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
+                 truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
+    }
 
     const int64_t offset = batch->size;
     batch->size += B;
@@ -291,11 +364,12 @@ void Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch
     batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
     batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
   }
+  return absl::OkStatus();
 }
 
 absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   PpoBatch batch;
-  BuildBatch(unrolls, &batch);
+  IMCA_RETURN_IF_ERROR(BuildBatch(unrolls, &batch));
   IMCA_ASSIGN_OR_RETURN(PpoStats stats, trainer_->Train(batch));
   ++iteration_;
   int64_t steps = 0;
@@ -351,6 +425,7 @@ Learner::CreditStats Learner::MeasureCredit(const std::vector<v1::Unroll>& unrol
 void Learner::Publish() {
   absl::MutexLock lock(&mu_);
   if (policy_ != nullptr) ++version_;
+  version_steps_ = 0;
   policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
 }
 
@@ -378,13 +453,13 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditSta
     absl::MutexLock lock(&mu_);
     train_success = Mean(train_success_);
   }
-  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g,%.6g",
+  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g,%.6g,%.6g",
                               iteration_, s.env_steps(), s.wall_seconds(), s.env_steps_per_sec(),
                               s.success_rate(), train_success, s.episode_return(), credit.intrinsic,
                               credit.share_max,
                               s.policy_version(), lag, s.unrolls_dropped_stale(), stats.policy_loss,
                               stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction,
-                              credit.global_reward, credit.contribution_abs);
+                              stats.behaviour_kl, credit.global_reward, credit.contribution_abs);
   for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
   metrics_ << "\n";
   metrics_.flush();

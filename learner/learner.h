@@ -14,6 +14,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
+#include "absl/time/time.h"
 #include "common/env.h"
 #include "common/featurizer.h"
 #include "imca/v1/learner_service.pb.h"
@@ -22,8 +23,36 @@
 
 namespace imca::learner {
 
+// What the centralised critic sees besides the agent-id one-hot.
+enum class CriticInput {
+  kState,     // The global state encoding (featurizer global_dim).
+  kJointObs,  // All agents' observations concatenated in agent order (n * obs_dim),
+              // on-policy's MAPPO "share_obs".
+};
+
+// How the step limit ends an episode for the learner.
+enum class TimeLimit {
+  kBootstrap,  // Truncation: the value of the state reached bootstraps the return.
+  kTerminal,   // As termination: no bootstrap (on-policy's MPE runner).
+};
+
+// "state" / "joint_obs", "bootstrap" / "terminal"; parsers return
+// INVALID_ARGUMENT naming the accepted values.
+std::string CriticInputName(CriticInput input);
+absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name);
+std::string TimeLimitName(TimeLimit limit);
+absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name);
+
 struct LearnerConfig {
   PpoConfig ppo;
+  CriticInput critic_input = CriticInput::kState;
+  TimeLimit time_limit = TimeLimit::kBootstrap;
+  // Synchronous collection: an iteration trains only on unrolls acted with
+  // the policy it starts from (lag 0). Push refuses any other version, and
+  // once batch_steps of the current version are queued, further unrolls of
+  // it (both as "stale ..."). Actors should act a fixed number of unrolls
+  // per version and then wait for the next (actor --sync_unrolls).
+  bool synchronous = false;
   double gamma = 0.99;            // Extrinsic discount.
   double gamma_int = 0.99;        // Intrinsic discount.
   double lambda = 0.95;           // GAE lambda (both heads).
@@ -64,6 +93,9 @@ class Learner {
 
   // The newest published policy (never null after Create).
   std::shared_ptr<const v1::Policy> CurrentPolicy() const;
+  // Blocks until a policy of version >= min_version is published, `timeout`
+  // passes or the learner stops; returns the newest policy either way.
+  std::shared_ptr<const v1::Policy> WaitForPolicy(int64_t min_version, absl::Duration timeout) const;
   v1::LearnerStatus Status() const;
 
   // Trains until the budget is reached or Stop() is called, then writes a
@@ -71,6 +103,9 @@ class Learner {
   absl::Status Run();
   // Makes Run() return after its current iteration and Push() fail. Non-blocking.
   void Stop();
+
+  // Floats of the critic's input per agent sample.
+  int critic_dim() const;
 
   // Bytes an iteration of `steps` joint env steps needs for its features:
   // steps * n * (obs_dim + critic_dim) floats, four times (the batch, the
@@ -94,7 +129,9 @@ class Learner {
   std::vector<v1::Unroll> NextBatch();
   absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
-  void BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch);
+  absl::Status BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch);
+  // Writes the critic input of agent `agent` in `state` (critic_dim floats).
+  void CriticInputOf(const int32_t* state, int agent, float* out) const;
   void Publish();
   // Means over one batch of the reward server's credit diagnostics.
   struct CreditStats {
@@ -120,6 +157,8 @@ class Learner {
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
   std::deque<v1::Unroll> queue_ ABSL_GUARDED_BY(mu_);
   int64_t queued_steps_ ABSL_GUARDED_BY(mu_) = 0;
+  // Synchronous mode: steps accepted for the current version.
+  int64_t version_steps_ ABSL_GUARDED_BY(mu_) = 0;
   std::shared_ptr<const v1::Policy> policy_ ABSL_GUARDED_BY(mu_);
   int64_t version_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t env_steps_ ABSL_GUARDED_BY(mu_) = 0;

@@ -1,8 +1,14 @@
 #include "learner/learner_service.h"
 
+#include "absl/strings/str_cat.h"
 #include "common/grpc_util.h"
 
 namespace imca::learner {
+namespace {
+
+constexpr int kMaxPolicyWaitMs = 60000;
+
+}  // namespace
 
 grpc::Status LearnerServiceImpl::PushUnrolls(
     grpc::ServerContext* context,
@@ -23,7 +29,13 @@ grpc::Status LearnerServiceImpl::PushUnrolls(
 
 grpc::Status LearnerServiceImpl::GetPolicy(grpc::ServerContext*, const v1::GetPolicyRequest* request,
                                            v1::Policy* response) {
-  std::shared_ptr<const v1::Policy> policy = learner_->CurrentPolicy();
+  if (request->wait_ms() < 0 || request->wait_ms() > kMaxPolicyWaitMs) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat("wait_ms: ", request->wait_ms(), " not in [0, ", kMaxPolicyWaitMs, "]"));
+  }
+  std::shared_ptr<const v1::Policy> policy =
+      request->wait_ms() > 0 ? learner_->WaitForPolicy(request->min_version(), absl::Milliseconds(request->wait_ms()))
+                             : learner_->CurrentPolicy();
   if (policy->version() >= request->min_version()) {
     *response = *policy;
   } else {

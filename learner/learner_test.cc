@@ -6,7 +6,9 @@
 #include <limits>
 #include <thread>
 
+#include "absl/strings/str_split.h"
 #include "common/env.h"
+#include "common/featurizer.h"
 #include "common/test_unrolls.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -171,6 +173,63 @@ TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
   ASSERT_TRUE(std::getline(metrics, row));
   EXPECT_THAT(header, HasSubstr(",global_reward,contribution_abs,share_1,share_2"));
   EXPECT_EQ(std::count(header.begin(), header.end(), ','), std::count(row.begin(), row.end(), ','));
+}
+
+TEST_F(LearnerTest, SynchronousTrainsOnlyOnThePolicyItStartsFrom) {
+  config_.synchronous = true;
+  config_.max_policy_lag = 4;  // Ignored: synchronous means lag 0.
+  config_.budget_steps = 2 * 256;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  int64_t woke_with = -1;
+  std::thread waiter([&] { woke_with = l->WaitForPolicy(1, absl::Seconds(60))->version(); });
+  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());  // 256 steps: version 0's batch is full.
+  absl::Status surplus = l->Push(Unroll(0, 2));
+  EXPECT_EQ(surplus.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(surplus.message(), HasSubstr("stale: the batch of policy version 0 is full"));
+  std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
+  waiter.join();  // Woken by the publication of version 1.
+  EXPECT_EQ(woke_with, 1);
+  // Version 0 is only one behind, but a synchronous learner takes no lag.
+  const absl::Status old = l->Push(Unroll(0, 3));
+  EXPECT_THAT(old.message(), HasSubstr("stale: policy version 0 is not the synchronous learner's 1"));
+  ASSERT_TRUE(l->Push(Unroll(1, 4)).ok());
+  trainer.join();
+  EXPECT_EQ(l->Status().env_steps(), 2 * 256);
+  EXPECT_EQ(l->Status().unrolls_dropped_stale(), 2);
+  // Every iteration trained at lag 0.
+  std::ifstream metrics(run_dir_ + "/metrics.csv");
+  std::string header, row;
+  ASSERT_TRUE(std::getline(metrics, header));
+  const std::vector<std::string> names = absl::StrSplit(header, ',');
+  const int lag = std::find(names.begin(), names.end(), "policy_lag") - names.begin();
+  int rows = 0;
+  while (std::getline(metrics, row)) {
+    EXPECT_EQ(std::vector<std::string>(absl::StrSplit(row, ','))[lag], "0.000") << row;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2);
+  // A wait for a version that never comes ends at its timeout with the newest.
+  EXPECT_EQ(l->WaitForPolicy(100, absl::Milliseconds(10))->version(), 2);
+}
+
+TEST_F(LearnerTest, CriticInputsAndTimeLimitOptionsTrain) {
+  config_.budget_steps = 256;
+  config_.critic_input = CriticInput::kJointObs;
+  config_.time_limit = TimeLimit::kTerminal;
+  config_.ppo.value_heads = 1;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  const env::Featurizer featurizer(*scenario_);
+  EXPECT_EQ((*learner)->critic_dim(), 2 * featurizer.obs_dim() + 2);
+  Learner* l = learner->get();
+  std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
+  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
+  trainer.join();
+  EXPECT_EQ(l->Status().policy_version(), 1);
+  EXPECT_EQ(ParseCriticInput("joint_obs").value(), CriticInput::kJointObs);
+  EXPECT_THAT(std::string(ParseTimeLimit("never").status().message()), HasSubstr("bootstrap or terminal"));
 }
 
 TEST_F(LearnerTest, StopWakesBlockedPushers) {

@@ -21,23 +21,51 @@ ABSL_FLAG(std::string, resume, "", "checkpoint directory to resume from");
 ABSL_FLAG(bool, auto_resume, false,
           "resume from <run_dir>/checkpoints if it holds a checkpoint, else start fresh "
           "(for restarts under docker-compose or Kubernetes)");
+namespace {
+// Every default comes from the config structs: one definition per hyperparameter.
+const imca::learner::LearnerConfig kDefaults;
+}  // namespace
+
 ABSL_FLAG(int64_t, steps, 2000000, "budget in joint env steps (0: until stopped)");
-ABSL_FLAG(int64_t, batch_steps, 4096, "joint env steps per PPO iteration");
-ABSL_FLAG(int, epochs, 4, "PPO epochs per iteration");
-ABSL_FLAG(int, minibatches, 4, "PPO minibatches per epoch");
-ABSL_FLAG(double, lr, 5e-4, "Adam learning rate");
-ABSL_FLAG(double, entropy_coef, 0.01, "entropy bonus coefficient");
-ABSL_FLAG(double, clip, 0.2, "PPO ratio clip");
-ABSL_FLAG(double, gamma, 0.99, "extrinsic discount");
-ABSL_FLAG(double, gamma_int, 0.99, "intrinsic discount");
-ABSL_FLAG(double, lambda, 0.95, "GAE lambda");
-ABSL_FLAG(double, intrinsic_coef, 1.0, "c_int: weight of the intrinsic advantage");
-ABSL_FLAG(int, hidden, 64, "hidden layer width");
-ABSL_FLAG(int, max_policy_lag, 4, "drop unrolls older than this many policy versions");
-ABSL_FLAG(int, queue_capacity, 4, "unrolls waiting for training before PushUnrolls blocks the actors");
-ABSL_FLAG(int, checkpoint_every, 50, "iterations between checkpoints");
-ABSL_FLAG(uint64_t, seed, 1, "seed of network initialisation and minibatch shuffling");
-ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads");
+ABSL_FLAG(int64_t, batch_steps, kDefaults.batch_steps, "joint env steps per PPO iteration");
+ABSL_FLAG(int, epochs, kDefaults.ppo.epochs, "PPO epochs per iteration");
+ABSL_FLAG(int, minibatches, kDefaults.ppo.minibatches, "PPO minibatches per epoch");
+ABSL_FLAG(double, lr, kDefaults.ppo.learning_rate, "Adam learning rate");
+ABSL_FLAG(double, entropy_coef, kDefaults.ppo.entropy_coef, "entropy bonus coefficient");
+ABSL_FLAG(double, clip, kDefaults.ppo.clip, "PPO ratio clip");
+ABSL_FLAG(double, value_coef, kDefaults.ppo.value_coef, "weight of the value loss");
+ABSL_FLAG(double, max_grad_norm, kDefaults.ppo.max_grad_norm, "gradient-norm clip (per optimiser)");
+ABSL_FLAG(double, gamma, kDefaults.gamma, "extrinsic discount");
+ABSL_FLAG(double, gamma_int, kDefaults.gamma_int, "intrinsic discount");
+ABSL_FLAG(double, lambda, kDefaults.lambda, "GAE lambda");
+ABSL_FLAG(double, intrinsic_coef, kDefaults.intrinsic_coef, "c_int: weight of the intrinsic advantage");
+ABSL_FLAG(int, hidden, kDefaults.ppo.hidden, "hidden layer width");
+ABSL_FLAG(std::string, objective, imca::learner::PpoObjectiveName(kDefaults.ppo.objective),
+          "what the PPO clip is measured against: behaviour (the actor's recorded policy) or "
+          "decoupled (a proximal policy recomputed by the learner; behaviour only as importance weight)");
+ABSL_FLAG(bool, layer_norm, kDefaults.ppo.layer_norm,
+          "LayerNorm on the input and after every hidden layer (actor and critic)");
+ABSL_FLAG(bool, separate_optimizers, kDefaults.ppo.separate_optimizers,
+          "one Adam (and grad-norm clip) for the actor, one for the critic");
+ABSL_FLAG(int, value_heads, kDefaults.ppo.value_heads,
+          "2: extrinsic and intrinsic value heads; 1: one head on extrinsic + intrinsic_coef * intrinsic");
+ABSL_FLAG(std::string, critic_input, imca::learner::CriticInputName(kDefaults.critic_input),
+          "the centralised critic's input besides the agent id: state (global state) or joint_obs "
+          "(all agents' observations)");
+ABSL_FLAG(std::string, time_limit, imca::learner::TimeLimitName(kDefaults.time_limit),
+          "the step limit for the returns: bootstrap (truncation) or terminal (no bootstrap)");
+ABSL_FLAG(bool, synchronous, kDefaults.synchronous,
+          "train each iteration only on unrolls of the policy it starts from (actors --sync_unrolls)");
+ABSL_FLAG(double, hidden_gain, kDefaults.ppo.hidden_gain, "orthogonal init gain of the hidden layers");
+ABSL_FLAG(double, value_clip, kDefaults.ppo.value_clip,
+          "clip value predictions to this distance from the iteration's start (normalised; 0: off)");
+ABSL_FLAG(double, huber_delta, kDefaults.ppo.huber_delta, "Huber value loss delta (0: MSE)");
+ABSL_FLAG(int, max_policy_lag, kDefaults.max_policy_lag, "drop unrolls older than this many policy versions");
+ABSL_FLAG(int, queue_capacity, kDefaults.queue_capacity,
+          "unrolls waiting for training before PushUnrolls blocks the actors");
+ABSL_FLAG(int, checkpoint_every, kDefaults.checkpoint_every, "iterations between checkpoints");
+ABSL_FLAG(uint64_t, seed, kDefaults.ppo.seed, "seed of network initialisation and minibatch shuffling");
+ABSL_FLAG(int, threads, kDefaults.ppo.threads, "LibTorch intra-op threads");
 ABSL_FLAG(int64_t, max_batch_mb, 8192,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(double, linger_seconds, 2,
@@ -74,6 +102,24 @@ int main(int argc, char** argv) {
   config.ppo.minibatches = absl::GetFlag(FLAGS_minibatches);
   config.ppo.entropy_coef = absl::GetFlag(FLAGS_entropy_coef);
   config.ppo.clip = absl::GetFlag(FLAGS_clip);
+  config.ppo.value_coef = absl::GetFlag(FLAGS_value_coef);
+  config.ppo.max_grad_norm = absl::GetFlag(FLAGS_max_grad_norm);
+  config.ppo.layer_norm = absl::GetFlag(FLAGS_layer_norm);
+  config.ppo.separate_optimizers = absl::GetFlag(FLAGS_separate_optimizers);
+  config.ppo.value_heads = absl::GetFlag(FLAGS_value_heads);
+  config.ppo.hidden_gain = absl::GetFlag(FLAGS_hidden_gain);
+  config.ppo.value_clip = absl::GetFlag(FLAGS_value_clip);
+  config.ppo.huber_delta = absl::GetFlag(FLAGS_huber_delta);
+  absl::StatusOr<learner::PpoObjective> objective = learner::ParsePpoObjective(absl::GetFlag(FLAGS_objective));
+  if (!objective.ok()) return Fail(absl::StrCat("--objective: ", objective.status().message()));
+  config.ppo.objective = *objective;
+  absl::StatusOr<learner::CriticInput> critic_input = learner::ParseCriticInput(absl::GetFlag(FLAGS_critic_input));
+  if (!critic_input.ok()) return Fail(absl::StrCat("--critic_input: ", critic_input.status().message()));
+  config.critic_input = *critic_input;
+  absl::StatusOr<learner::TimeLimit> time_limit = learner::ParseTimeLimit(absl::GetFlag(FLAGS_time_limit));
+  if (!time_limit.ok()) return Fail(absl::StrCat("--time_limit: ", time_limit.status().message()));
+  config.time_limit = *time_limit;
+  config.synchronous = absl::GetFlag(FLAGS_synchronous);
   config.ppo.seed = absl::GetFlag(FLAGS_seed);
   config.ppo.threads = absl::GetFlag(FLAGS_threads);
   config.gamma = absl::GetFlag(FLAGS_gamma);

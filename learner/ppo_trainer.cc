@@ -39,6 +39,23 @@ torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
   return -torch::min(unclipped, clipped).mean();
 }
 
+// Decoupled PPO (Hilton et al. 2021): the clip is measured against the
+// proximal policy, the behaviour policy enters only as the importance weight
+//   -mean(w * min(r A, clamp(r, 1 - clip, 1 + clip) A)),
+//   r = exp(log_probs - proximal), w = exp(proximal - behaviour).
+// `proximal` and `behaviour` carry no gradient. With proximal == behaviour it
+// is ClippedSurrogateLoss.
+torch::Tensor DecoupledSurrogateLoss(const torch::Tensor& log_probs,
+                                     const torch::Tensor& proximal_log_probs,
+                                     const torch::Tensor& behaviour_log_probs,
+                                     const torch::Tensor& advantages, double clip) {
+  const torch::Tensor ratio = torch::exp(log_probs - proximal_log_probs);
+  const torch::Tensor weight = torch::exp(proximal_log_probs - behaviour_log_probs);
+  const torch::Tensor unclipped = ratio * advantages;
+  const torch::Tensor clipped = torch::clamp(ratio, 1.0 - clip, 1.0 + clip) * advantages;
+  return -(weight * torch::min(unclipped, clipped)).mean();
+}
+
 }  // namespace internal
 
 namespace {
@@ -50,56 +67,96 @@ constexpr double kAdvantageEps = 1e-8;
 constexpr double kMinReturnVar = 1e-4;
 // A recorded log-probability may round slightly above 0 when p ~ 1.
 constexpr float kMaxLogProb = 1e-4f;
+constexpr double kLayerNormEps = 1e-5;
 
 // An MLP of three Linear layers with tanh after the first two. Orthogonal
-// weights (gain sqrt(2) for hidden layers, `last_gain` for the output layer)
-// and zero biases, the usual PPO initialisation.
+// weights (`hidden_gain` for hidden layers, `last_gain` for the output layer)
+// and zero biases, the usual PPO initialisation. With `layer_norm`, a
+// LayerNorm (eps 1e-5, weight 1, bias 0) on the input and after each hidden
+// tanh, as on-policy's MLPBase (feature normalisation, then Linear -> act ->
+// LayerNorm per hidden layer).
 class MlpImpl : public torch::nn::Module {
  public:
-  MlpImpl(int64_t in, int64_t hidden, int64_t out, double last_gain) {
+  MlpImpl(int64_t in, int64_t hidden, int64_t out, double hidden_gain, double last_gain,
+          bool layer_norm) {
     const int64_t sizes[] = {in, hidden, hidden, out};
+    if (layer_norm) {
+      input_norm_ = register_module(
+          "input_norm", torch::nn::LayerNorm(torch::nn::LayerNormOptions({in}).eps(kLayerNormEps)));
+    }
     for (int i = 0; i < 3; ++i) {
       torch::nn::Linear layer(sizes[i], sizes[i + 1]);
-      torch::nn::init::orthogonal_(layer->weight, i == 2 ? last_gain : std::sqrt(2.0));
+      torch::nn::init::orthogonal_(layer->weight, i == 2 ? last_gain : hidden_gain);
       torch::nn::init::zeros_(layer->bias);
       layers_.push_back(register_module(std::to_string(i), layer));
+      if (layer_norm && i < 2) {
+        norms_.push_back(register_module(
+            absl::StrCat("norm", i),
+            torch::nn::LayerNorm(torch::nn::LayerNormOptions({hidden}).eps(kLayerNormEps))));
+      }
     }
   }
 
   torch::Tensor forward(torch::Tensor x) {
+    if (!input_norm_.is_empty()) x = input_norm_->forward(x);
     for (size_t i = 0; i < layers_.size(); ++i) {
       x = layers_[i]->forward(x);
-      if (i + 1 < layers_.size()) x = torch::tanh(x);
+      if (i + 1 < layers_.size()) {
+        x = torch::tanh(x);
+        if (!norms_.empty()) x = norms_[i]->forward(x);
+      }
     }
     return x;
   }
 
   const std::vector<torch::nn::Linear>& layers() const { return layers_; }
+  // Empty without layer_norm.
+  const torch::nn::LayerNorm& input_norm() const { return input_norm_; }
+  const std::vector<torch::nn::LayerNorm>& norms() const { return norms_; }
 
  private:
+  torch::nn::LayerNorm input_norm_{nullptr};
   std::vector<torch::nn::Linear> layers_;
+  std::vector<torch::nn::LayerNorm> norms_;
 };
 TORCH_MODULE(Mlp);
 
-// Everything the optimiser is bound to. Load builds a fresh one and swaps it
-// in only when the whole checkpoint has been read, so a failed load changes
-// nothing.
+// Everything the optimisers are bound to. Load builds a fresh one and swaps
+// it in only when the whole checkpoint has been read, so a failed load
+// changes nothing.
 struct Model {
   Mlp actor{nullptr};
   Mlp critic{nullptr};
-  std::vector<torch::Tensor> parameters;  // Actor's, then critic's.
-  std::unique_ptr<torch::optim::Adam> optimizer;
+  // One group per optimiser: {actor's and critic's} with one optimiser, or
+  // {actor's}, {critic's} with separate ones. Each group's gradient norm is
+  // clipped on its own.
+  std::vector<std::vector<torch::Tensor>> groups;
+  std::vector<std::unique_ptr<torch::optim::Adam>> optimizers;
+
+  void ZeroGrad() {
+    for (auto& optimizer : optimizers) optimizer->zero_grad();
+  }
 };
 
 Model BuildModel(const PpoConfig& config, int obs_dim, int critic_dim, int num_actions) {
   Model model;
-  model.actor = Mlp(obs_dim, config.hidden, num_actions, /*last_gain=*/0.01);
-  // Two outputs: normalised extrinsic and intrinsic values.
-  model.critic = Mlp(critic_dim, config.hidden, 2, /*last_gain=*/1.0);
-  model.parameters = model.actor->parameters();
-  for (const torch::Tensor& p : model.critic->parameters()) model.parameters.push_back(p);
-  model.optimizer = std::make_unique<torch::optim::Adam>(
-      model.parameters, torch::optim::AdamOptions(config.learning_rate).eps(config.adam_eps));
+  model.actor = Mlp(obs_dim, config.hidden, num_actions, config.hidden_gain, /*last_gain=*/0.01,
+                    config.layer_norm);
+  // Outputs: normalised extrinsic (and intrinsic) values.
+  model.critic = Mlp(critic_dim, config.hidden, config.value_heads, config.hidden_gain,
+                     /*last_gain=*/1.0, config.layer_norm);
+  std::vector<torch::Tensor> actor = model.actor->parameters();
+  std::vector<torch::Tensor> critic = model.critic->parameters();
+  if (config.separate_optimizers) {
+    model.groups = {std::move(actor), std::move(critic)};
+  } else {
+    actor.insert(actor.end(), critic.begin(), critic.end());
+    model.groups = {std::move(actor)};
+  }
+  for (const auto& group : model.groups) {
+    model.optimizers.push_back(std::make_unique<torch::optim::Adam>(
+        group, torch::optim::AdamOptions(config.learning_rate).eps(config.adam_eps)));
+  }
   return model;
 }
 
@@ -161,8 +218,10 @@ struct TrainData {
   torch::Tensor critic_inputs;        // [B, critic_dim]
   torch::Tensor actions;              // [B] int64
   torch::Tensor behaviour_log_probs;  // [B]
+  torch::Tensor start_log_probs;      // [B], the actor's before this iteration's updates.
   torch::Tensor advantages;           // [B]
-  torch::Tensor value_targets;        // [B, 2]
+  torch::Tensor value_targets;        // [B, value_heads]
+  torch::Tensor start_values;         // [B, value_heads], normalised; only with value_clip.
 };
 
 // Sums over minibatch updates, turned into averages by Finish():
@@ -175,6 +234,7 @@ struct StatsSums {
   double entropy = 0;
   double grad_norm = 0;
   int64_t updates = 0;
+  double behaviour_kl = 0;
   double kl = 0;
   int64_t kl_samples = 0;
   int64_t clipped = 0;
@@ -189,6 +249,7 @@ struct StatsSums {
     s.grad_norm = grad_norm / u;
     s.approx_kl = kl / std::max<int64_t>(kl_samples, 1);
     s.clip_fraction = static_cast<double>(clipped) / std::max<int64_t>(samples, 1);
+    s.behaviour_kl = behaviour_kl;
     return s;
   }
 };
@@ -268,6 +329,14 @@ absl::Status SyncFile(const std::string& path) {
   return absl::OkStatus();
 }
 
+// [layer_norm, value_heads, number of optimisers]: what a checkpoint must
+// agree on beyond the sizes in "dims".
+torch::Tensor ArchitectureTensor(const PpoConfig& config) {
+  return torch::tensor({int64_t{config.layer_norm}, int64_t{config.value_heads},
+                        int64_t{config.separate_optimizers ? 2 : 1}},
+                       torch::kInt64);
+}
+
 }  // namespace
 
 struct PpoTrainer::Impl {
@@ -283,7 +352,7 @@ struct PpoTrainer::Impl {
   }
 
   absl::Status ValidateBatch(const PpoBatch& batch) const;
-  TrainData MakeTrainData(const PpoBatch& batch) const;
+  TrainData MakeTrainData(const PpoBatch& batch);
   absl::StatusOr<PpoStats> Train(const PpoBatch& batch);
   absl::Status TrainMinibatch(const TrainData& data, const torch::Tensor& indices, bool last_epoch,
                               StatsSums& sums);
@@ -339,7 +408,7 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
 }
 
 // Call after the normalisers have seen this batch's returns.
-TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) const {
+TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
   const int64_t b = batch.size;
   TrainData data;
   data.obs = CopyFloats(batch.obs, {b, obs_dim_});
@@ -348,20 +417,36 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) const {
                      .to(torch::kInt64);
   data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});
   data.advantages = NormaliseAdvantages(CopyFloats(batch.advantages, {b}));
-  data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
-                                     NormaliseReturns(batch.returns_int, int_norm_)},
-                                    /*dim=*/1);
+  if (config_.value_heads == 2) {
+    data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
+                                       NormaliseReturns(batch.returns_int, int_norm_)},
+                                      /*dim=*/1);
+  } else {
+    data.value_targets = NormaliseReturns(batch.returns_ext, ext_norm_).unsqueeze(1);
+  }
+  // The networks as they are before this iteration's first update: the
+  // proximal policy of the decoupled objective (and the staleness
+  // diagnostic), and the anchor of value clipping.
+  torch::NoGradGuard no_grad;
+  data.start_log_probs = torch::log_softmax(model_.actor->forward(data.obs), /*dim=*/1)
+                             .gather(1, data.actions.unsqueeze(1))
+                             .squeeze(1);
+  if (config_.value_clip > 0) data.start_values = model_.critic->forward(data.critic_inputs);
   return data;
 }
 
 absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
   ext_norm_.Update(batch.returns_ext);
-  int_norm_.Update(batch.returns_int);
+  if (config_.value_heads == 2) int_norm_.Update(batch.returns_int);
   const TrainData data = MakeTrainData(batch);
   const int64_t b = batch.size;
   // With fewer samples than minibatches, every minibatch holds one sample.
   const int64_t minibatches = std::min<int64_t>(config_.minibatches, b);
   StatsSums sums;
+  {
+    const torch::Tensor log_w = data.start_log_probs - data.behaviour_log_probs;
+    sums.behaviour_kl = ((log_w.exp() - 1.0) - log_w).to(torch::kFloat64).mean().item<double>();
+  }
   for (int epoch = 0; epoch < config_.epochs; ++epoch) {
     const torch::Tensor order = torch::randperm(b, generator_, torch::kInt64);
     for (int64_t k = 0; k < minibatches; ++k) {
@@ -379,17 +464,38 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   const torch::Tensor actions = data.actions.index_select(0, indices);
   const torch::Tensor behaviour = data.behaviour_log_probs.index_select(0, indices);
   const torch::Tensor advantages = data.advantages.index_select(0, indices);
+  // The policy the clip is measured against.
+  const bool decoupled = config_.objective == PpoObjective::kDecoupled;
+  const torch::Tensor anchor =
+      decoupled ? data.start_log_probs.index_select(0, indices) : behaviour;
 
   const torch::Tensor log_probs_all =
       torch::log_softmax(model_.actor->forward(data.obs.index_select(0, indices)), /*dim=*/1);
   const torch::Tensor log_probs = log_probs_all.gather(1, actions.unsqueeze(1)).squeeze(1);
   const torch::Tensor entropy = -(log_probs_all.exp() * log_probs_all).sum(1).mean();
   const torch::Tensor policy_loss =
-      internal::ClippedSurrogateLoss(log_probs, behaviour, advantages, config_.clip);
+      decoupled
+          ? internal::DecoupledSurrogateLoss(log_probs, anchor, behaviour, advantages, config_.clip)
+          : internal::ClippedSurrogateLoss(log_probs, behaviour, advantages, config_.clip);
   const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
-  // MSE per head, summed over the two heads.
-  const torch::Tensor value_loss =
-      (values - data.value_targets.index_select(0, indices)).pow(2).mean(/*dim=*/0).sum();
+  const torch::Tensor targets = data.value_targets.index_select(0, indices);
+  const auto error_loss = [&](const torch::Tensor& error) {
+    if (config_.huber_delta > 0) {
+      const torch::Tensor abs = error.abs();
+      const double d = config_.huber_delta;
+      return torch::where(abs <= d, 0.5 * error.pow(2), d * (abs - 0.5 * d));
+    }
+    return error.pow(2);
+  };
+  torch::Tensor per_sample = error_loss(values - targets);
+  if (config_.value_clip > 0) {
+    const torch::Tensor start = data.start_values.index_select(0, indices);
+    const torch::Tensor clipped =
+        start + torch::clamp(values - start, -config_.value_clip, config_.value_clip);
+    per_sample = torch::max(per_sample, error_loss(clipped - targets));
+  }
+  // Mean per head, summed over the heads.
+  const torch::Tensor value_loss = per_sample.mean(/*dim=*/0).sum();
   const torch::Tensor loss =
       policy_loss + config_.value_coef * value_loss - config_.entropy_coef * entropy;
 
@@ -399,20 +505,26 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
         "non-finite PPO loss ", loss_value, " (policy ", policy_loss.item<double>(), ", value ",
         value_loss.item<double>(), ", entropy ", entropy.item<double>(), "); no step taken"));
   }
-  model_.optimizer->zero_grad();
+  // Actor and critic share no parameters, so one backward pass of the sum
+  // gives each optimiser's group exactly the gradient of its own loss.
+  model_.ZeroGrad();
   loss.backward();
-  const double grad_norm =
-      torch::nn::utils::clip_grad_norm_(model_.parameters, config_.max_grad_norm);
-  if (!std::isfinite(grad_norm)) {
-    model_.optimizer->zero_grad();
-    return absl::InternalError(
-        absl::StrCat("non-finite gradient norm ", grad_norm, "; no step taken"));
+  double grad_norm_sq = 0;  // Of all parameters together, whatever the grouping.
+  for (const auto& group : model_.groups) {
+    const double norm = torch::nn::utils::clip_grad_norm_(group, config_.max_grad_norm);
+    if (!std::isfinite(norm)) {
+      model_.ZeroGrad();
+      return absl::InternalError(
+          absl::StrCat("non-finite gradient norm ", norm, "; no step taken"));
+    }
+    grad_norm_sq += norm * norm;
   }
-  model_.optimizer->step();
+  const double grad_norm = std::sqrt(grad_norm_sq);
+  for (auto& optimizer : model_.optimizers) optimizer->step();
 
   // Diagnostics, from the forward pass before this step.
   torch::NoGradGuard no_grad;
-  const torch::Tensor log_ratio = log_probs.detach() - behaviour;
+  const torch::Tensor log_ratio = log_probs.detach() - anchor;
   const torch::Tensor ratio = log_ratio.exp();
   sums.policy_loss += policy_loss.item<double>();
   sums.value_loss += value_loss.item<double>();
@@ -429,9 +541,12 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
 }
 
 // Checkpoint layout: "dims" (int64 [obs_dim, critic_dim, num_actions,
-// hidden]), sub-archives "actor", "critic", "optimizer", float64 [mean, var,
-// count] tensors "value_norm_ext"/"value_norm_int", and "generator" (the
-// shuffling RNG state).
+// hidden]), "architecture" (int64 [layer_norm, value_heads, optimizers];
+// absent in checkpoints from before these options: [0, 2, 1]), sub-archives
+// "actor", "critic", "optimizer" (and "optimizer_critic" with separate
+// optimisers), float64 [mean, var, count] tensors
+// "value_norm_ext"/"value_norm_int", and "generator" (the shuffling RNG
+// state).
 void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   archive.write(
       "dims",
@@ -444,9 +559,12 @@ void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   torch::serialize::OutputArchive critic(archive.compilation_unit());
   model_.critic->save(critic);
   archive.write("critic", critic);
-  torch::serialize::OutputArchive optimizer(archive.compilation_unit());
-  model_.optimizer->save(optimizer);
-  archive.write("optimizer", optimizer);
+  archive.write("architecture", ArchitectureTensor(config_));
+  for (size_t i = 0; i < model_.optimizers.size(); ++i) {
+    torch::serialize::OutputArchive optimizer(archive.compilation_unit());
+    model_.optimizers[i]->save(optimizer);
+    archive.write(i == 0 ? "optimizer" : "optimizer_critic", optimizer);
+  }
   archive.write("value_norm_ext", ext_norm_.ToTensor());
   archive.write("value_norm_int", int_norm_.ToTensor());
   archive.write("generator", generator_.get_state());
@@ -467,6 +585,22 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
         "checkpoint ", path, " has (obs_dim, critic_dim, num_actions, hidden) = (",
         absl::StrJoin(have, ", "), "), this trainer has (", absl::StrJoin(want, ", "), ")"));
   }
+  torch::Tensor architecture;
+  if (!archive.try_read("architecture", architecture)) {
+    architecture = torch::tensor({int64_t{0}, int64_t{2}, int64_t{1}}, torch::kInt64);
+  }
+  const torch::Tensor arch = architecture.to(torch::kInt64).flatten().contiguous();
+  const std::vector<int64_t> arch_have(arch.data_ptr<int64_t>(),
+                                       arch.data_ptr<int64_t>() + arch.numel());
+  const torch::Tensor arch_want_t = ArchitectureTensor(config_);
+  const std::vector<int64_t> arch_want(arch_want_t.data_ptr<int64_t>(),
+                                       arch_want_t.data_ptr<int64_t>() + arch_want_t.numel());
+  if (arch_have != arch_want) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "checkpoint ", path, " has (layer_norm, value_heads, optimizers) = (",
+        absl::StrJoin(arch_have, ", "), "), this trainer has (", absl::StrJoin(arch_want, ", "),
+        ")"));
+  }
   Model fresh = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
   torch::serialize::InputArchive actor;
   archive.read("actor", actor);
@@ -476,13 +610,15 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
   archive.read("critic", critic);
   fresh.critic->load(critic);
   IMCA_RETURN_IF_ERROR(CheckSameShapes(*model_.critic, *fresh.critic, "critic"));
-  torch::serialize::InputArchive optimizer;
-  archive.read("optimizer", optimizer);
-  fresh.optimizer->load(optimizer);
-  for (auto& group : fresh.optimizer->param_groups()) {
-    static_cast<torch::optim::AdamOptions&>(group.options())
-        .lr(config_.learning_rate)
-        .eps(config_.adam_eps);
+  for (size_t i = 0; i < fresh.optimizers.size(); ++i) {
+    torch::serialize::InputArchive optimizer;
+    archive.read(i == 0 ? "optimizer" : "optimizer_critic", optimizer);
+    fresh.optimizers[i]->load(optimizer);
+    for (auto& group : fresh.optimizers[i]->param_groups()) {
+      static_cast<torch::optim::AdamOptions&>(group.options())
+          .lr(config_.learning_rate)
+          .eps(config_.adam_eps);
+    }
   }
 
   torch::Tensor ext_tensor, int_tensor, generator_state;
@@ -504,6 +640,17 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
 }
 
 // ---------------------------------------------------------------------------
+
+std::string PpoObjectiveName(PpoObjective objective) {
+  return objective == PpoObjective::kDecoupled ? "decoupled" : "behaviour";
+}
+
+absl::StatusOr<PpoObjective> ParsePpoObjective(const std::string& name) {
+  for (PpoObjective o : {PpoObjective::kBehaviour, PpoObjective::kDecoupled}) {
+    if (name == PpoObjectiveName(o)) return o;
+  }
+  return absl::InvalidArgumentError(absl::StrCat("'", name, "' is not behaviour or decoupled"));
+}
 
 PpoTrainer::PpoTrainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 PpoTrainer::~PpoTrainer() = default;
@@ -534,6 +681,12 @@ absl::StatusOr<std::unique_ptr<PpoTrainer>> PpoTrainer::Create(const PpoConfig& 
   if (config.threads <= 0) {
     return invalid(absl::StrCat("config.threads must be > 0, got ", config.threads));
   }
+  if (config.value_heads != 1 && config.value_heads != 2) {
+    return invalid(absl::StrCat("config.value_heads must be 1 or 2, got ", config.value_heads));
+  }
+  if (!(config.hidden_gain > 0)) return invalid("config.hidden_gain must be > 0");
+  if (!(config.value_clip >= 0)) return invalid("config.value_clip must be >= 0");
+  if (!(config.huber_delta >= 0)) return invalid("config.huber_delta must be >= 0");
   try {
     return std::unique_ptr<PpoTrainer>(
         new PpoTrainer(std::make_unique<Impl>(config, obs_dim, critic_dim, num_actions)));
@@ -544,20 +697,29 @@ absl::StatusOr<std::unique_ptr<PpoTrainer>> PpoTrainer::Create(const PpoConfig& 
   }
 }
 
-void PpoTrainer::Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int) {
-  if (batch <= 0) return;
-  torch::NoGradGuard no_grad;
-  // from_blob does not copy; the forward pass only reads its input.
-  const torch::Tensor x = torch::from_blob(const_cast<float*>(critic_inputs),
-                                           {batch, impl_->critic_dim_}, torch::kFloat32);
-  const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
-  const auto v = out.accessor<double, 2>();
-  const RunningMeanVar& ext = impl_->ext_norm_;
-  const RunningMeanVar& intr = impl_->int_norm_;
-  for (int64_t i = 0; i < batch; ++i) {
-    v_ext[i] = static_cast<float>(v[i][0] * ext.stddev() + ext.mean());
-    v_int[i] = static_cast<float>(v[i][1] * intr.stddev() + intr.mean());
+absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float* v_ext,
+                                float* v_int) {
+  if (batch <= 0) return absl::OkStatus();
+  try {
+    torch::NoGradGuard no_grad;
+    // from_blob does not copy; the forward pass only reads its input.
+    const torch::Tensor x = torch::from_blob(const_cast<float*>(critic_inputs),
+                                             {batch, impl_->critic_dim_}, torch::kFloat32);
+    const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
+    const auto v = out.accessor<double, 2>();
+    const RunningMeanVar& ext = impl_->ext_norm_;
+    const RunningMeanVar& intr = impl_->int_norm_;
+    const bool two_heads = impl_->config_.value_heads == 2;
+    for (int64_t i = 0; i < batch; ++i) {
+      v_ext[i] = static_cast<float>(v[i][0] * ext.stddev() + ext.mean());
+      v_int[i] = two_heads ? static_cast<float>(v[i][1] * intr.stddev() + intr.mean()) : 0.0f;
+    }
+  } catch (const c10::Error& e) {
+    return absl::InternalError(absl::StrCat("critic forward: ", e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("critic forward: ", e.what()));
   }
+  return absl::OkStatus();
 }
 
 absl::StatusOr<PpoStats> PpoTrainer::Train(const PpoBatch& batch) {
@@ -574,13 +736,23 @@ absl::StatusOr<PpoStats> PpoTrainer::Train(const PpoBatch& batch) {
 v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
   v1::Policy policy;
   policy.set_version(version);
-  policy.set_architecture("mlp_tanh");
+  const bool layer_norm = impl_->config_.layer_norm;
+  policy.set_architecture(layer_norm ? "mlp_tanh_layernorm" : "mlp_tanh");
   policy.set_obs_dim(impl_->obs_dim_);
   policy.set_num_actions(impl_->num_actions_);
-  const auto& layers = impl_->model_.actor->layers();
+  const Mlp& actor = impl_->model_.actor;
+  if (layer_norm) {
+    AddTensor("policy.input_norm.weight", actor->input_norm()->weight, policy);
+    AddTensor("policy.input_norm.bias", actor->input_norm()->bias, policy);
+  }
+  const auto& layers = actor->layers();
   for (size_t i = 0; i < layers.size(); ++i) {
     AddTensor(absl::StrCat("policy.", i, ".weight"), layers[i]->weight, policy);
     AddTensor(absl::StrCat("policy.", i, ".bias"), layers[i]->bias, policy);
+    if (layer_norm && i < actor->norms().size()) {
+      AddTensor(absl::StrCat("policy.", i, ".norm.weight"), actor->norms()[i]->weight, policy);
+      AddTensor(absl::StrCat("policy.", i, ".norm.bias"), actor->norms()[i]->bias, policy);
+    }
   }
   return policy;
 }

@@ -15,9 +15,28 @@ namespace imca::learner {
 // Multi-agent PPO (MAPPO) with a shared actor and a centralised critic with
 // two heads (extrinsic and intrinsic value). LibTorch stays behind this
 // header (pimpl) so that gRPC and test code never compile torch headers.
+// What the PPO clip is measured against (docs/learner.md, "Staleness").
+enum class PpoObjective {
+  // ratio = pi / behaviour, clipped: the textbook surrogate, with the actor's
+  // recorded log-probabilities as the old policy.
+  kBehaviour,
+  // Decoupled PPO (Hilton et al. 2021, "Batch size-invariance for policy
+  // optimization"): the clip is measured against a proximal policy, the
+  // learner's own policy at the start of the iteration (recomputed on the
+  // batch), and the behaviour policy enters only as the importance weight
+  // pi_prox / behaviour:  -mean(w * min(r A, clip(r, 1 -+ eps) A)),
+  // r = pi / pi_prox, w = pi_prox / behaviour.
+  kDecoupled,
+};
+
+// "behaviour" / "decoupled".
+std::string PpoObjectiveName(PpoObjective objective);
+// Errors: INVALID_ARGUMENT naming the accepted values.
+absl::StatusOr<PpoObjective> ParsePpoObjective(const std::string& name);
+
 struct PpoConfig {
   int hidden = 64;             // Width of the two hidden layers (actor and critic).
-  double learning_rate = 3e-4;
+  double learning_rate = 5e-4;
   double adam_eps = 1e-5;
   double clip = 0.2;           // PPO ratio clip.
   double value_coef = 0.5;
@@ -27,6 +46,23 @@ struct PpoConfig {
   int minibatches = 4;
   uint64_t seed = 1;
   int threads = 1;             // LibTorch intra-op threads.
+  PpoObjective objective = PpoObjective::kBehaviour;
+  // LayerNorm on the input and after every hidden activation, in actor and
+  // critic (marlbenchmark/on-policy's MLPBase with feature normalisation).
+  bool layer_norm = false;
+  // Two Adam optimisers (actor, critic), each with its own grad-norm clip at
+  // max_grad_norm, as on-policy's R_MAPPO; false: one over both, one clip.
+  bool separate_optimizers = false;
+  // Critic outputs: 2 = extrinsic and intrinsic heads (returns_int trained),
+  // 1 = one head on returns_ext (the learner folds the bonus into the reward).
+  int value_heads = 2;
+  double hidden_gain = 1.4142135623730951;  // Orthogonal init gain of hidden layers (sqrt 2).
+  // > 0: PPO-style value clipping, the loss is the max of the plain and the
+  // clipped error, predictions clipped to +-value_clip around the critic's
+  // (normalised) values at the start of the iteration. 0: off.
+  double value_clip = 0;
+  // > 0: Huber value loss with this delta (on normalised targets); 0: MSE.
+  double huber_delta = 0;
 };
 
 // One training batch of B per-agent samples, row-major.
@@ -45,8 +81,13 @@ struct PpoStats {
   double policy_loss = 0;
   double value_loss = 0;
   double entropy = 0;
+  // Ratios are to the policy the clip is measured against: the behaviour
+  // policy, or the proximal one with PpoObjective::kDecoupled.
   double approx_kl = 0;      // Mean of (ratio - 1) - log ratio, last epoch.
   double clip_fraction = 0;  // Share of samples whose ratio was clipped.
+  // Mean of (w - 1) - log w, w = pi_start / behaviour, pi_start the policy at
+  // the start of Train: how stale the batch was (0 when acted on-policy).
+  double behaviour_kl = 0;
   double grad_norm = 0;      // Before clipping, mean over minibatches.
 };
 
@@ -55,31 +96,38 @@ class PpoTrainer {
  public:
   // Builds actor (obs_dim -> hidden -> hidden -> num_actions, tanh,
   // orthogonal init, last layer gain 0.01) and critic (critic_dim -> hidden ->
-  // hidden -> 2, orthogonal init) and an Adam optimiser over both.
+  // hidden -> value_heads, orthogonal init, last layer gain 1), optionally
+  // with LayerNorms, and one Adam optimiser over both or one each.
   // Errors: INVALID_ARGUMENT for non-positive sizes or bad config values.
   static absl::StatusOr<std::unique_ptr<PpoTrainer>> Create(const PpoConfig& config, int obs_dim,
                                                             int critic_dim, int num_actions);
   ~PpoTrainer();
 
-  // Denormalised value predictions for critic inputs [batch][critic_dim].
-  void Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int);
+  // Denormalised value predictions for critic inputs [batch][critic_dim];
+  // with one value head, v_int is all zeros.
+  // Errors: INTERNAL if LibTorch throws.
+  absl::Status Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int);
 
   // Updates the return normalisers with the batch's returns, normalises the
   // advantages (mean 0, std 1), then runs `epochs` passes over `minibatches`
-  // shuffled minibatches: clipped surrogate on exp(log pi - behaviour_log_probs),
-  // value loss on normalised targets, entropy bonus, global grad-norm clipping.
+  // shuffled minibatches: clipped surrogate (PpoConfig::objective), value
+  // loss on normalised targets, entropy bonus, grad-norm clipping. With one
+  // value head, returns_int is ignored.
   // Errors: INVALID_ARGUMENT if the batch's vectors do not match `size`;
   // INTERNAL if LibTorch throws or a loss becomes non-finite (weights are
   // left as before that minibatch).
   absl::StatusOr<PpoStats> Train(const PpoBatch& batch);
 
-  // The actor as named tensors ("policy.<i>.weight"/"policy.<i>.bias",
-  // architecture "mlp_tanh"), see learner_service.proto.
+  // The actor as named tensors, see learner_service.proto: architecture
+  // "mlp_tanh" ("policy.<i>.weight"/"policy.<i>.bias"), or with layer_norm
+  // "mlp_tanh_layernorm" (plus "policy.input_norm.*" and "policy.<i>.norm.*").
   v1::Policy ExportPolicy(int64_t version) const;
 
   // Writes / reads actor, critic, optimiser state and return normalisers.
   // Errors: INTERNAL on I/O failure; Load: INVALID_ARGUMENT if the file's
-  // shapes do not match this trainer.
+  // shapes or architecture (layer_norm, value_heads, separate_optimizers)
+  // do not match this trainer (a checkpoint without them is the original
+  // architecture: no layer norm, two heads, one optimiser).
   absl::Status Save(const std::string& path) const;
   absl::Status Load(const std::string& path);
 

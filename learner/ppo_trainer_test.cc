@@ -13,6 +13,7 @@
 
 #include <torch/torch.h>
 
+#include "common/policy_mlp.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -23,6 +24,10 @@ namespace internal {
 torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
                                    const torch::Tensor& behaviour_log_probs,
                                    const torch::Tensor& advantages, double clip);
+torch::Tensor DecoupledSurrogateLoss(const torch::Tensor& log_probs,
+                                     const torch::Tensor& proximal_log_probs,
+                                     const torch::Tensor& behaviour_log_probs,
+                                     const torch::Tensor& advantages, double clip);
 }  // namespace internal
 
 namespace {
@@ -56,13 +61,30 @@ std::vector<float> OneHot(int context) {
   return x;
 }
 
-// An independent evaluator of an exported "mlp_tanh" policy: tanh after every
-// layer but the last, softmax on the last. Double precision.
+// LayerNorm of x with the tensors "<prefix>.weight" / "<prefix>.bias".
+void LayerNorm(const std::map<std::string, const v1::NamedTensor*>& by_name,
+               const std::string& prefix, std::vector<double>& x) {
+  const v1::NamedTensor& g = *by_name.at(prefix + ".weight");
+  const v1::NamedTensor& b = *by_name.at(prefix + ".bias");
+  double mean = 0, var = 0;
+  for (double v : x) mean += v / x.size();
+  for (double v : x) var += (v - mean) * (v - mean) / x.size();
+  for (size_t i = 0; i < x.size(); ++i) {
+    x[i] = (x[i] - mean) / std::sqrt(var + 1e-5) * g.data(i) + b.data(i);
+  }
+}
+
+// An independent evaluator of an exported "mlp_tanh" or
+// "mlp_tanh_layernorm" policy: tanh (and LayerNorm) after every layer but
+// the last, softmax on the last. Double precision.
 std::vector<double> Probabilities(const v1::Policy& policy, const std::vector<float>& obs) {
   std::map<std::string, const v1::NamedTensor*> by_name;
   for (const v1::NamedTensor& t : policy.tensors()) by_name[t.name()] = &t;
+  const bool layer_norm = policy.architecture() == "mlp_tanh_layernorm";
   std::vector<double> x(obs.begin(), obs.end());
-  const int layers = policy.tensors_size() / 2;
+  if (layer_norm) LayerNorm(by_name, "policy.input_norm", x);
+  int layers = 0;
+  while (by_name.count("policy." + std::to_string(layers) + ".weight") > 0) ++layers;
   for (int l = 0; l < layers; ++l) {
     const v1::NamedTensor& w = *by_name.at("policy." + std::to_string(l) + ".weight");
     const v1::NamedTensor& b = *by_name.at("policy." + std::to_string(l) + ".bias");
@@ -74,6 +96,7 @@ std::vector<double> Probabilities(const v1::Policy& policy, const std::vector<fl
       y[r] = (l + 1 < layers) ? std::tanh(sum) : sum;
     }
     x = std::move(y);
+    if (layer_norm && l + 1 < layers) LayerNorm(by_name, "policy." + std::to_string(l) + ".norm", x);
   }
   const double max = *std::max_element(x.begin(), x.end());
   double total = 0;
@@ -95,7 +118,7 @@ std::vector<float> ContextValues(PpoTrainer& trainer) {
   const std::vector<float> second = OneHot(1);
   inputs.insert(inputs.end(), second.begin(), second.end());
   std::vector<float> v_ext(kContexts), v_int(kContexts);
-  trainer.Values(inputs.data(), kContexts, v_ext.data(), v_int.data());
+  EXPECT_TRUE(trainer.Values(inputs.data(), kContexts, v_ext.data(), v_int.data()).ok());
   return {v_ext[0], v_ext[1], v_int[0], v_int[1]};
 }
 
@@ -442,6 +465,219 @@ TEST(PpoTrainerTest, NonFiniteLossIsInternalAndSkipsTheStep) {
   EXPECT_EQ(result.status().code(), absl::StatusCode::kInternal) << result.status();
   EXPECT_THAT(std::string(result.status().message()), HasSubstr("non-finite"));
   EXPECT_EQ(AllWeights(trainer->ExportPolicy(0)), before);
+}
+
+// Every learner option still learns the bandit and the context-dependent
+// values, and exports a policy the independent evaluator reads the same way
+// as the trainer acts (the bandit is only solved if the export is right).
+struct Variant {
+  std::string name;
+  std::function<void(PpoConfig&)> apply;
+};
+
+void PrintTo(const Variant& variant, std::ostream* os) { *os << variant.name; }
+
+class PpoVariantTest : public ::testing::TestWithParam<Variant> {};
+
+TEST_P(PpoVariantTest, LearnsTheBanditAndTheValues) {
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  GetParam().apply(config);
+  auto trainer = MakeTrainer(config);
+  ASSERT_NE(trainer, nullptr);
+  std::mt19937 rng(123);
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    const auto result = trainer->Train(BanditBatch(*trainer, 256, rng));
+    ASSERT_TRUE(result.ok()) << result.status();
+    EXPECT_TRUE(std::isfinite(result->policy_loss) && std::isfinite(result->value_loss));
+  }
+  const v1::Policy policy = trainer->ExportPolicy(1);
+  EXPECT_EQ(policy.architecture(), config.layer_norm ? "mlp_tanh_layernorm" : "mlp_tanh");
+  for (int context = 0; context < kContexts; ++context) {
+    const std::vector<double> p = Probabilities(policy, OneHot(context));
+    EXPECT_GT(p[kRightAction[context]], 0.9) << "context " << context;
+  }
+  // The critic learns what each context pays (about P(right action) by now).
+  const std::vector<float> v = ContextValues(*trainer);
+  EXPECT_NEAR(v[0], 1.0f, 0.2f);
+  EXPECT_NEAR(v[1], 1.0f, 0.2f);
+  if (config.value_heads == 1) {
+    EXPECT_EQ(v[2], 0.0f);
+    EXPECT_EQ(v[3], 0.0f);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Options, PpoVariantTest,
+    ::testing::Values(Variant{"LayerNorm", [](PpoConfig& c) { c.layer_norm = true; }},
+                      Variant{"SeparateOptimizers", [](PpoConfig& c) { c.separate_optimizers = true; }},
+                      Variant{"OneValueHead", [](PpoConfig& c) { c.value_heads = 1; }},
+                      Variant{"Decoupled", [](PpoConfig& c) { c.objective = PpoObjective::kDecoupled; }},
+                      Variant{"ValueClipHuber",
+                              [](PpoConfig& c) {
+                                c.value_clip = 0.2;
+                                c.huber_delta = 1.0;
+                                c.hidden_gain = 5.0 / 3.0;
+                              }},
+                      Variant{"Reference",
+                              [](PpoConfig& c) {
+                                c.layer_norm = true;
+                                c.separate_optimizers = true;
+                                c.value_heads = 1;
+                                c.value_clip = 0.2;
+                                c.value_coef = 1.0;
+                              }}),
+    [](const ::testing::TestParamInfo<Variant>& info) { return info.param.name; });
+
+TEST(PpoTrainerTest, ActorsEvaluateTheExportedLayerNormPolicyAsTheLearnerDoes) {
+  PpoConfig config = SmallConfig();
+  config.layer_norm = true;
+  config.learning_rate = 3e-3;
+  auto trainer = MakeTrainer(config, /*obs_dim=*/kContexts);
+  ASSERT_NE(trainer, nullptr);
+  std::mt19937 rng(4);
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(trainer->Train(BanditBatch(*trainer, 64, rng)).ok());
+  const v1::Policy policy = trainer->ExportPolicy(3);
+  auto mlp = PolicyMlp::FromProto(policy);
+  ASSERT_TRUE(mlp.ok()) << mlp.status();
+  std::uniform_real_distribution<float> uniform(-2.0f, 2.0f);
+  std::vector<float> obs;
+  for (int i = 0; i < 8 * kContexts; ++i) obs.push_back(uniform(rng));
+  std::vector<float> probs(8 * kBanditActions);
+  mlp->Probabilities(obs.data(), 8, probs.data());
+  for (int row = 0; row < 8; ++row) {
+    const std::vector<double> want =
+        Probabilities(policy, std::vector<float>(obs.begin() + row * kContexts, obs.begin() + (row + 1) * kContexts));
+    for (int a = 0; a < kBanditActions; ++a) EXPECT_NEAR(probs[row * kBanditActions + a], want[a], 1e-5);
+  }
+  // A policy missing one of its norms is refused, naming it.
+  v1::Policy broken = policy;
+  for (int i = 0; i < broken.tensors_size(); ++i) {
+    if (broken.tensors(i).name() == "policy.1.norm.bias") broken.mutable_tensors()->DeleteSubrange(i, 1);
+  }
+  EXPECT_THAT(std::string(PolicyMlp::FromProto(broken).status().message()), HasSubstr("policy.1.norm.bias"));
+}
+
+TEST(DecoupledSurrogateTest, ClipsAgainstTheProximalPolicyAndWeightsByBehaviour) {
+  // r = pi / pi_prox:  2    1.1   0.5   0.5
+  // w = pi_prox / mu:  0.5  2     1     4
+  // advantage:         1    1     1    -1
+  // w * min term:      0.6  2.2   0.5  -3.2   (clipped, -, -, clipped)
+  const torch::Tensor proximal = torch::log(torch::tensor({0.2f, 0.4f, 0.3f, 0.4f}));
+  const torch::Tensor behaviour = torch::log(torch::tensor({0.4f, 0.2f, 0.3f, 0.1f}));
+  const torch::Tensor log_probs =
+      (proximal + torch::log(torch::tensor({2.0f, 1.1f, 0.5f, 0.5f}))).detach().requires_grad_(true);
+  const torch::Tensor advantages = torch::tensor({1.0f, 1.0f, 1.0f, -1.0f});
+  const torch::Tensor loss =
+      internal::DecoupledSurrogateLoss(log_probs, proximal, behaviour, advantages, /*clip=*/0.2);
+  EXPECT_NEAR(loss.item<float>(), -(0.6 + 2.2 + 0.5 - 3.2) / 4, 1e-5);
+  loss.backward();
+  // d loss / d log_prob_i = -w_i * r_i * A_i / 4 where unclipped, else 0.
+  const std::vector<float> expected = {0.0f, -2.0f * 1.1f / 4, -0.5f / 4, 0.0f};
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(log_probs.grad()[i].item<float>(), expected[i], 1e-5) << i;
+
+  // With the proximal policy equal to the behaviour one it is plain PPO.
+  const torch::Tensor same = internal::DecoupledSurrogateLoss(log_probs, behaviour, behaviour, advantages, 0.2);
+  EXPECT_NEAR(same.item<float>(),
+              internal::ClippedSurrogateLoss(log_probs, behaviour, advantages, 0.2).item<float>(), 1e-6);
+}
+
+// The batch of FullyClippedBatchLeavesTheActorUnchanged: acted by a policy
+// that differs from the trainer's (ratio 2 where A > 0, 0.5 where A < 0).
+PpoBatch StaleBatch(PpoTrainer& trainer) {
+  std::mt19937 rng(5);
+  PpoBatch batch = BanditBatch(trainer, 64, rng);
+  for (int i = 0; i < batch.size; ++i) {
+    const bool positive = i % 4 < 2;
+    batch.advantages[i] = positive ? 1.0f : -1.0f;
+    batch.behaviour_log_probs[i] += positive ? -std::log(2.0f) : std::log(2.0f);
+  }
+  return batch;
+}
+
+TEST(PpoTrainerTest, DecoupledMeasuresTheClipFromThePolicyItStartsWith) {
+  // Plain PPO clips every sample of this stale batch (its ratios to the
+  // behaviour policy are 2 and 0.5) and learns nothing; decoupled PPO starts
+  // each sample at ratio 1 to its proximal policy, so it learns.
+  PpoConfig config = SmallConfig();
+  config.entropy_coef = 0;
+  config.epochs = 1;
+  config.minibatches = 1;
+  for (PpoObjective objective : {PpoObjective::kBehaviour, PpoObjective::kDecoupled}) {
+    config.objective = objective;
+    auto trainer = MakeTrainer(config);
+    ASSERT_NE(trainer, nullptr);
+    const PpoBatch batch = StaleBatch(*trainer);
+    const std::vector<float> before = AllWeights(trainer->ExportPolicy(0));
+    const auto stats = trainer->Train(batch);
+    ASSERT_TRUE(stats.ok()) << stats.status();
+    // Staleness is measured the same way by both: w = pi_start / mu is 1/2 or 2.
+    EXPECT_NEAR(stats->behaviour_kl, 0.5 * ((0.5 - 1 + std::log(2.0)) + (2 - 1 - std::log(2.0))), 1e-4);
+    if (objective == PpoObjective::kBehaviour) {
+      EXPECT_DOUBLE_EQ(stats->clip_fraction, 1.0);
+      EXPECT_EQ(AllWeights(trainer->ExportPolicy(0)), before);
+    } else {
+      // One minibatch of one epoch: the forward pass is the proximal policy itself.
+      EXPECT_DOUBLE_EQ(stats->clip_fraction, 0.0);
+      EXPECT_NEAR(stats->approx_kl, 0.0, 1e-7);
+      EXPECT_NE(AllWeights(trainer->ExportPolicy(0)), before);
+    }
+  }
+}
+
+TEST(PpoTrainerTest, OptionsRoundTripThroughCheckpointsAndMismatchesAreRefused) {
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  config.layer_norm = true;
+  config.separate_optimizers = true;
+  config.value_heads = 1;
+  auto original = MakeTrainer(config);
+  ASSERT_NE(original, nullptr);
+  std::mt19937 rng(9);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(original->Train(BanditBatch(*original, 64, rng)).ok());
+  const std::string path = TempPath("ppo_trainer_test_options.pt");
+  ASSERT_TRUE(original->Save(path).ok());
+
+  PpoConfig reseeded = config;
+  reseeded.seed = 99;
+  auto restored = MakeTrainer(reseeded);
+  ASSERT_NE(restored, nullptr);
+  ASSERT_TRUE(restored->Load(path).ok());
+  const PpoBatch next = BanditBatch(*original, 64, rng);
+  ASSERT_TRUE(original->Train(next).ok());
+  ASSERT_TRUE(restored->Train(next).ok());
+  EXPECT_EQ(AllWeights(restored->ExportPolicy(0)), AllWeights(original->ExportPolicy(0)));
+  EXPECT_EQ(ContextValues(*restored), ContextValues(*original));
+
+  for (const auto& [what, change] : std::vector<std::pair<std::string, std::function<void(PpoConfig&)>>>{
+           {"layer_norm", [](PpoConfig& c) { c.layer_norm = false; }},
+           {"value_heads", [](PpoConfig& c) { c.value_heads = 2; }},
+           {"optimizers", [](PpoConfig& c) { c.separate_optimizers = false; }}}) {
+    PpoConfig other = config;
+    change(other);
+    auto mismatched = MakeTrainer(other);
+    ASSERT_NE(mismatched, nullptr);
+    const std::vector<float> before = AllWeights(mismatched->ExportPolicy(0));
+    const absl::Status status = mismatched->Load(path);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << what << ": " << status;
+    EXPECT_THAT(std::string(status.message()), HasSubstr("layer_norm, value_heads, optimizers")) << what;
+    EXPECT_EQ(AllWeights(mismatched->ExportPolicy(0)), before) << what;
+  }
+  std::remove(path.c_str());
+}
+
+TEST(PpoTrainerTest, CreateRejectsBadOptions) {
+  std::vector<PpoConfig> bad(4, SmallConfig());
+  bad[0].value_heads = 3;
+  bad[1].hidden_gain = 0;
+  bad[2].value_clip = -1;
+  bad[3].huber_delta = -0.5;
+  for (size_t i = 0; i < bad.size(); ++i) {
+    const auto t = PpoTrainer::Create(bad[i], 3, 4, 5);
+    EXPECT_EQ(t.status().code(), absl::StatusCode::kInvalidArgument) << "config " << i;
+  }
+  EXPECT_EQ(ParsePpoObjective("decoupled").value(), PpoObjective::kDecoupled);
+  EXPECT_THAT(std::string(ParsePpoObjective("proximal").status().message()), HasSubstr("behaviour or decoupled"));
 }
 
 }  // namespace

@@ -35,6 +35,39 @@ def positive_int(text):
     return value
 
 
+def boolean(text):
+    value = str(text).lower()
+    if value in ("1", "true", "on", "yes"):
+        return True
+    if value in ("0", "false", "off", "no"):
+        return False
+    raise argparse.ArgumentTypeError(f"must be true or false, got {text}")
+
+
+# Learner options passed on only when given, so that the learner binary's
+# default (learner/learner.h, learner/ppo_trainer.h) is the one definition:
+# (./imca train flag, learner flag, argparse keywords). docs/learner.md.
+LEARNER_OPTIONS = [
+    ("--objective", "objective", dict(choices=["behaviour", "decoupled"],
+                                      help="PPO clip against the behaviour policy or a recomputed proximal one")),
+    ("--layer-norm", "layer_norm", dict(type=boolean, metavar="BOOL", help="LayerNorm on input and hidden layers")),
+    ("--separate-optimizers", "separate_optimizers", dict(type=boolean, metavar="BOOL",
+                                                          help="one Adam and grad clip each for actor and critic")),
+    ("--value-heads", "value_heads", dict(type=int, choices=[1, 2], help="2: extrinsic + intrinsic heads; 1: one")),
+    ("--critic-input", "critic_input", dict(choices=["state", "joint_obs"], help="centralised critic's input")),
+    ("--time-limit", "time_limit", dict(choices=["bootstrap", "terminal"], help="the step limit in the returns")),
+    ("--hidden-gain", "hidden_gain", dict(type=float, help="orthogonal init gain of hidden layers")),
+    ("--value-clip", "value_clip", dict(type=float, help="value clipping range (0: off)")),
+    ("--huber-delta", "huber_delta", dict(type=float, help="Huber value loss delta (0: MSE)")),
+    ("--value-coef", "value_coef", dict(type=float, help="value loss weight")),
+    ("--max-grad-norm", "max_grad_norm", dict(type=float, help="gradient-norm clip")),
+    ("--epochs", "epochs", dict(type=positive_int, help="PPO epochs per iteration")),
+    ("--minibatches", "minibatches", dict(type=positive_int, help="PPO minibatches per epoch")),
+    ("--max-policy-lag", "max_policy_lag", dict(type=int, help="drop unrolls older than this many versions")),
+    ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of the learner")),
+]
+
+
 class OneLineParser(argparse.ArgumentParser):
     """Flag errors as one line naming the flag (no usage dump)."""
 
@@ -66,6 +99,11 @@ def parse_args(argv):
     p.add_argument("--lr", type=float, default=5e-4)
     p.add_argument("--entropy-coef", type=float, default=0.01)
     p.add_argument("--intrinsic-coef", type=float, default=1.0)
+    for flag, _, keywords in LEARNER_OPTIONS:
+        p.add_argument(flag, default=None, **keywords)
+    p.add_argument("--sync", type=boolean, default=False, metavar="BOOL",
+                   help="synchronous collection: every iteration trains on the policy it starts from; "
+                        "--batch-steps must be a multiple of actors x envs x unroll length")
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
     p.add_argument("--reward-port", type=int, default=0, help="reward server port (0: a free one)")
     p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
@@ -94,7 +132,29 @@ def parse_args(argv):
         p.error(f"argument --map: no such file '{args.map}'")
     if args.envs_per_actor * args.unroll_length > 65536:
         p.error("--envs-per-actor * --unroll-length must be <= 65536")
+    if args.sync:
+        per_round = args.actors * args.envs_per_actor * args.unroll_length
+        if args.batch_steps % per_round != 0:
+            p.error(f"argument --sync: --batch-steps {args.batch_steps} is not a multiple of --actors x "
+                    f"--envs-per-actor x --unroll-length = {per_round}")
     return args
+
+
+def learner_option_flags(args):
+    """The learner flags of the options the user gave (others keep the binary's default)."""
+    flags = []
+    for flag, name, _ in LEARNER_OPTIONS:
+        value = getattr(args, flag[2:].replace("-", "_"))
+        if value is not None:
+            flags.append(f"--{name}={str(value).lower() if isinstance(value, bool) else value}")
+    if args.sync:
+        flags.append("--synchronous=true")
+    return flags
+
+
+def sync_unrolls(args):
+    """Unrolls each actor acts per policy version in synchronous mode (0: async)."""
+    return args.batch_steps // (args.actors * args.envs_per_actor * args.unroll_length) if args.sync else 0
 
 
 class Services:
@@ -286,7 +346,7 @@ def run(args):
             f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}",
             f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
-            f"--seed={args.seed}"] + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
+            f"--seed={args.seed}"] + learner_option_flags(args) + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
         learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)
         actors = []
         for i in range(args.actors):
@@ -296,7 +356,7 @@ def run(args):
                 os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port}",
                 f"--reward_server=127.0.0.1:{reward_port}", *scenario_flags,
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
-                f"--seed={args.seed * 1000 + i + 1}", f"--actor_id={name}"]
+                f"--seed={args.seed * 1000 + i + 1}", f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}"]
                 + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else []))
         tty = sys.stderr.isatty()
         last_print = 0.0
