@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/status_macros.h"
+#include "learner/lap.h"
 #include "common/unroll_check.h"
 #include "learner/gae.h"
 
@@ -19,7 +20,9 @@ namespace fs = std::filesystem;
 constexpr char kMetricsHeader[] =
     "iteration,env_steps,wall_seconds,env_steps_per_sec,success_rate,train_success_rate,"
     "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
-    "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,global_reward,contribution_abs";
+    "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,"
+    "ms_wait,ms_featurise,ms_values,ms_gae,ms_copy,ms_prepare,ms_forward,ms_backward,ms_optimizer,ms_publish,"
+    "global_reward,contribution_abs";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -252,7 +255,10 @@ absl::Status Learner::Run() {
       absl::MutexLock lock(&mu_);
       if (stopping_ || (config_.budget_steps > 0 && env_steps_ >= config_.budget_steps)) break;
     }
+    phases_ = Phases();
+    Clock::time_point lap = Clock::now();
     std::vector<v1::Unroll> batch = NextBatch();
+    phases_.wait = Lap(lap);
     if (batch.empty()) break;
     IMCA_RETURN_IF_ERROR(TrainOn(batch));
     if (config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) {
@@ -289,6 +295,7 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
   const bool one_head = config_.ppo.value_heads == 1;
   const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
   auto critic_input = [&](const int32_t* state, int agent, float* out) { CriticInputOf(state, agent, out); };
+  Clock::time_point lap = Clock::now();
   for (const v1::Unroll& u : unrolls) {
     const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
     // Critic inputs of states [T+1][E][n].
@@ -299,6 +306,7 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
       }
     }
     std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
+    phases_.featurise += Lap(lap);
     IMCA_RETURN_IF_ERROR(trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data()));
     // GAE reads final values only at truncated steps: evaluate just those
     // reached states (a few per unroll, not all T*E of them).
@@ -322,6 +330,7 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
         }
       }
     }
+    phases_.values += Lap(lap);
     std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
     for (int64_t row = 0; row < T * E; ++row) {
       for (int a = 0; a < n; ++a) {
@@ -345,16 +354,18 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
       ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
                  truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
     }
+    phases_.gae += Lap(lap);
 
     const int64_t offset = batch->size;
     batch->size += B;
     batch->obs.resize(batch->size * obs_dim);
-    batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
     for (int64_t row = 0; row < T * E; ++row) {
       for (int a = 0; a < n; ++a) {
         featurizer_.Observe(u.states().data() + row * k, a, &batch->obs[(offset + row * n + a) * obs_dim]);
       }
     }
+    phases_.featurise += Lap(lap);
+    batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
     batch->actions.insert(batch->actions.end(), u.actions().begin(), u.actions().end());
     batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
                                       u.behaviour_log_probs().end());
@@ -363,6 +374,7 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
     }
     batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
     batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
+    phases_.copy += Lap(lap);
   }
   return absl::OkStatus();
 }
@@ -389,7 +401,9 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     env_steps_ += steps;
     last_intrinsic_ = credit.intrinsic;
   }
+  Clock::time_point lap = Clock::now();
   Publish();
+  phases_.publish = Lap(lap);
   WriteMetricsRow(stats, lag, credit);
   return absl::OkStatus();
 }
@@ -453,13 +467,20 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditSta
     absl::MutexLock lock(&mu_);
     train_success = Mean(train_success_);
   }
-  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g,%.6g,%.6g",
+  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g",
                               iteration_, s.env_steps(), s.wall_seconds(), s.env_steps_per_sec(),
                               s.success_rate(), train_success, s.episode_return(), credit.intrinsic,
                               credit.share_max,
                               s.policy_version(), lag, s.unrolls_dropped_stale(), stats.policy_loss,
                               stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction,
-                              stats.behaviour_kl, credit.global_reward, credit.contribution_abs);
+                              stats.behaviour_kl);
+  // Where this iteration's time went (docs/benchmarks.md, "Where the learner's time goes").
+  for (double seconds : {phases_.wait, phases_.featurise, phases_.values, phases_.gae, phases_.copy,
+                         stats.seconds_prepare, stats.seconds_forward, stats.seconds_backward,
+                         stats.seconds_optimizer, phases_.publish}) {
+    metrics_ << absl::StrFormat(",%.2f", 1e3 * seconds);
+  }
+  metrics_ << absl::StrFormat(",%.6g,%.6g", credit.global_reward, credit.contribution_abs);
   for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
   metrics_ << "\n";
   metrics_.flush();

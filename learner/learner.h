@@ -151,6 +151,13 @@ class Learner {
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::ofstream metrics_;                // Training thread only.
   int64_t iteration_ = 0;                // Training thread only.
+  // Wall seconds of the current iteration's phases (training thread only):
+  // waiting for unrolls, featurising (critic inputs and observations), the
+  // critic's values for GAE, GAE, copying into the batch, publishing.
+  struct Phases {
+    double wait = 0, featurise = 0, values = 0, gae = 0, copy = 0, publish = 0;
+  };
+  Phases phases_;
   double wall_offset_ = 0;               // Seconds of earlier runs (resume).
 
   mutable absl::Mutex mu_;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +20,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "common/status_macros.h"
+#include "learner/lap.h"
 
 namespace imca::learner {
 
@@ -218,7 +220,8 @@ struct TrainData {
   torch::Tensor critic_inputs;        // [B, critic_dim]
   torch::Tensor actions;              // [B] int64
   torch::Tensor behaviour_log_probs;  // [B]
-  torch::Tensor start_log_probs;      // [B], the actor's before this iteration's updates.
+  // [B], the actor's before this iteration's updates (kDecoupled only).
+  torch::Tensor start_log_probs;
   torch::Tensor advantages;           // [B]
   torch::Tensor value_targets;        // [B, value_heads]
   torch::Tensor start_values;         // [B, value_heads], normalised; only with value_clip.
@@ -235,6 +238,10 @@ struct StatsSums {
   double grad_norm = 0;
   int64_t updates = 0;
   double behaviour_kl = 0;
+  double seconds_prepare = 0;
+  double seconds_forward = 0;
+  double seconds_backward = 0;
+  double seconds_optimizer = 0;
   double kl = 0;
   int64_t kl_samples = 0;
   int64_t clipped = 0;
@@ -250,6 +257,10 @@ struct StatsSums {
     s.approx_kl = kl / std::max<int64_t>(kl_samples, 1);
     s.clip_fraction = static_cast<double>(clipped) / std::max<int64_t>(samples, 1);
     s.behaviour_kl = behaviour_kl;
+    s.seconds_prepare = seconds_prepare;
+    s.seconds_forward = seconds_forward;
+    s.seconds_backward = seconds_backward;
+    s.seconds_optimizer = seconds_optimizer;
     return s;
   }
 };
@@ -327,6 +338,12 @@ absl::Status SyncFile(const std::string& path) {
     return absl::InternalError(absl::StrCat("fsync ", path, ": ", std::strerror(saved_errno)));
   }
   return absl::OkStatus();
+}
+
+// Mean of (w - 1) - log w over samples, w = exp(log_probs - behaviour).
+double BehaviourKl(const torch::Tensor& log_probs, const torch::Tensor& behaviour_log_probs) {
+  const torch::Tensor log_w = log_probs - behaviour_log_probs;
+  return ((log_w.exp() - 1.0) - log_w).to(torch::kFloat64).mean().item<double>();
 }
 
 // [layer_norm, value_heads, number of optimisers]: what a checkpoint must
@@ -425,17 +442,20 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
     data.value_targets = NormaliseReturns(batch.returns_ext, ext_norm_).unsqueeze(1);
   }
   // The networks as they are before this iteration's first update: the
-  // proximal policy of the decoupled objective (and the staleness
-  // diagnostic), and the anchor of value clipping.
+  // proximal policy of the decoupled objective, and the anchor of value
+  // clipping.
   torch::NoGradGuard no_grad;
-  data.start_log_probs = torch::log_softmax(model_.actor->forward(data.obs), /*dim=*/1)
-                             .gather(1, data.actions.unsqueeze(1))
-                             .squeeze(1);
+  if (config_.objective == PpoObjective::kDecoupled) {
+    data.start_log_probs = torch::log_softmax(model_.actor->forward(data.obs), /*dim=*/1)
+                               .gather(1, data.actions.unsqueeze(1))
+                               .squeeze(1);
+  }
   if (config_.value_clip > 0) data.start_values = model_.critic->forward(data.critic_inputs);
   return data;
 }
 
 absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
+  Clock::time_point lap = Clock::now();
   ext_norm_.Update(batch.returns_ext);
   if (config_.value_heads == 2) int_norm_.Update(batch.returns_int);
   const TrainData data = MakeTrainData(batch);
@@ -443,10 +463,10 @@ absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
   // With fewer samples than minibatches, every minibatch holds one sample.
   const int64_t minibatches = std::min<int64_t>(config_.minibatches, b);
   StatsSums sums;
-  {
-    const torch::Tensor log_w = data.start_log_probs - data.behaviour_log_probs;
-    sums.behaviour_kl = ((log_w.exp() - 1.0) - log_w).to(torch::kFloat64).mean().item<double>();
+  if (data.start_log_probs.defined()) {
+    sums.behaviour_kl = BehaviourKl(data.start_log_probs, data.behaviour_log_probs);
   }
+  sums.seconds_prepare = Lap(lap);
   for (int epoch = 0; epoch < config_.epochs; ++epoch) {
     const torch::Tensor order = torch::randperm(b, generator_, torch::kInt64);
     for (int64_t k = 0; k < minibatches; ++k) {
@@ -461,6 +481,7 @@ absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
 
 absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch::Tensor& indices,
                                               bool last_epoch, StatsSums& sums) {
+  Clock::time_point lap = Clock::now();
   const torch::Tensor actions = data.actions.index_select(0, indices);
   const torch::Tensor behaviour = data.behaviour_log_probs.index_select(0, indices);
   const torch::Tensor advantages = data.advantages.index_select(0, indices);
@@ -507,8 +528,10 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   }
   // Actor and critic share no parameters, so one backward pass of the sum
   // gives each optimiser's group exactly the gradient of its own loss.
+  sums.seconds_forward += Lap(lap);
   model_.ZeroGrad();
   loss.backward();
+  sums.seconds_backward += Lap(lap);
   double grad_norm_sq = 0;  // Of all parameters together, whatever the grouping.
   for (const auto& group : model_.groups) {
     const double norm = torch::nn::utils::clip_grad_norm_(group, config_.max_grad_norm);
@@ -521,9 +544,15 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   }
   const double grad_norm = std::sqrt(grad_norm_sq);
   for (auto& optimizer : model_.optimizers) optimizer->step();
+  sums.seconds_optimizer += Lap(lap);
 
   // Diagnostics, from the forward pass before this step.
   torch::NoGradGuard no_grad;
+  if (sums.updates == 0 && !data.start_log_probs.defined()) {
+    // Without a proximal pass, the first minibatch's forward pass is the
+    // only one at the start policy: staleness is measured on it.
+    sums.behaviour_kl = BehaviourKl(log_probs.detach(), behaviour);
+  }
   const torch::Tensor log_ratio = log_probs.detach() - anchor;
   const torch::Tensor ratio = log_ratio.exp();
   sums.policy_loss += policy_loss.item<double>();

@@ -87,8 +87,17 @@ struct PpoStats {
   double clip_fraction = 0;  // Share of samples whose ratio was clipped.
   // Mean of (w - 1) - log w, w = pi_start / behaviour, pi_start the policy at
   // the start of Train: how stale the batch was (0 when acted on-policy).
+  // Over the whole batch with kDecoupled, else over the first minibatch.
   double behaviour_kl = 0;
   double grad_norm = 0;      // Before clipping, mean over minibatches.
+  // Wall seconds of Train's phases: the batch copied into tensors with the
+  // advantage and target normalisation and the start-of-iteration forward
+  // passes; then summed over minibatches: forward passes and losses,
+  // backward pass, gradient clipping and optimiser steps.
+  double seconds_prepare = 0;
+  double seconds_forward = 0;
+  double seconds_backward = 0;
+  double seconds_optimizer = 0;
 };
 
 // Not thread-safe: the learner's training thread owns it.

@@ -10,11 +10,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <string>
 #include <memory>
 #include <thread>
 #include <vector>
 
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/rng.h"
@@ -118,9 +123,36 @@ void BenchCountTable(int64_t keys) {
               RssMiB() - rss_before, static_cast<unsigned long long>(sum));
 }
 
+// Prints the median over iterations of every ms_* column of a run's
+// metrics.csv as "<prefix>_<column> <ms>": where an iteration's time goes.
+void PrintPhases(const std::string& metrics_path, const std::string& prefix) {
+  std::ifstream in(metrics_path);
+  std::string line;
+  if (!std::getline(in, line)) return;
+  const std::vector<std::string> names = absl::StrSplit(line, ',');
+  std::vector<std::vector<double>> columns(names.size());
+  while (std::getline(in, line)) {
+    const std::vector<std::string> cells = absl::StrSplit(line, ',');
+    for (size_t i = 0; i < names.size() && i < cells.size(); ++i) {
+      double v;
+      if (absl::StartsWith(names[i], "ms_") && absl::SimpleAtod(cells[i], &v)) columns[i].push_back(v);
+    }
+  }
+  double total = 0;
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (columns[i].empty()) continue;
+    const double m = Median(columns[i]);
+    if (names[i] != "ms_wait") total += m;
+    std::printf("%s_%s %.2f\n", prefix.c_str(), names[i].c_str(), m);
+  }
+  std::printf("%s_ms_busy %.2f\n", prefix.c_str(), total);
+}
+
 double BenchLearner(const env::Scenario& scenario, int rounds, int threads) {
   learner::LearnerConfig config;
   config.batch_steps = 8192;
+  config.run_dir = "/tmp/imca_bench_speed_learner_" + std::to_string(getpid());
+  config.checkpoint_every = 0;
   config.ppo.threads = threads;
   config.max_policy_lag = 1 << 30;
   config.queue_capacity = 8;
@@ -145,6 +177,8 @@ double BenchLearner(const env::Scenario& scenario, int rounds, int threads) {
   }
   l->Stop();
   trainer.join();
+  PrintPhases(config.run_dir + "/metrics.csv", "learner_" + std::to_string(threads) + "thread");
+  std::filesystem::remove_all(config.run_dir);
   return Median(rates);
 }
 

@@ -61,6 +61,24 @@ v1::ScoreResponse DryRunScore(int port, const env::Scenario& scenario) {
   return response;
 }
 
+// The rows of a metrics.csv as column -> value.
+std::vector<std::map<std::string, double>> ReadMetrics(const std::string& path) {
+  std::ifstream in(path);
+  std::string header, line;
+  std::getline(in, header);
+  const std::vector<std::string> names = absl::StrSplit(header, ',');
+  std::vector<std::map<std::string, double>> rows;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> values = absl::StrSplit(line, ',');
+    EXPECT_EQ(values.size(), names.size()) << line;
+    std::map<std::string, double>& row = rows.emplace_back();
+    for (size_t i = 0; i < names.size() && i < values.size(); ++i) {
+      EXPECT_TRUE(absl::SimpleAtod(values[i], &row[names[i]])) << names[i];
+    }
+  }
+  return rows;
+}
+
 std::unique_ptr<env::Scenario> DefaultScenario() {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   EXPECT_TRUE(scenario.ok());
@@ -158,6 +176,45 @@ TEST(IntegrationTest, ThreeServicesTrainAndStopCleanly) {
     checkpoint |= entry.path().extension() == ".pt";
   }
   EXPECT_TRUE(checkpoint);
+}
+
+// Synchronous collection: the actors wait for each new policy, so every
+// iteration trains on unrolls acted by exactly the policy it starts from:
+// lag 0, and the recorded behaviour probabilities are the learner's own
+// (behaviour_kl would be > 0 if the ratio's old policy were another).
+TEST(IntegrationTest, SynchronousActorsActWithThePolicyTheLearnerTrains) {
+  const std::string dir = TempDir("synchronous");
+  int reward_port = 0;
+  auto reward_server = StartRewardServer(dir, "imca", &reward_port);
+  ASSERT_GT(reward_port, 0);
+  Subprocess learner({kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port",
+                      "--run_dir=" + dir + "/run", "--steps=8192", "--batch_steps=1024", "--synchronous"},
+                     dir + "/learner.log");
+  ASSERT_TRUE(learner.Start());
+  const int learner_port = WaitForPortFile(dir + "/learner.port", learner, std::chrono::seconds(60));
+  ASSERT_GT(learner_port, 0) << learner.Log();
+  std::vector<std::unique_ptr<Subprocess>> actors;
+  for (int i = 0; i < 2; ++i) {
+    // 2 actors x 8 envs x 32 steps x 2 unrolls = 1024 steps: one batch per version.
+    actors.push_back(std::make_unique<Subprocess>(
+        std::vector<std::string>{kBin + "/actor", "--learner=127.0.0.1:" + std::to_string(learner_port),
+                                 "--reward_server=127.0.0.1:" + std::to_string(reward_port), "--envs=8",
+                                 "--unroll_length=32", "--sync_unrolls=2", "--seed=" + std::to_string(i + 1),
+                                 "--actor_id=actor-" + std::to_string(i)},
+        dir + "/actor-" + std::to_string(i) + ".log"));
+    ASSERT_TRUE(actors.back()->Start());
+  }
+  EXPECT_EQ(learner.Wait(std::chrono::seconds(180)), 0) << learner.Log();
+  for (auto& actor : actors) EXPECT_EQ(actor->Wait(std::chrono::seconds(30)), 0) << actor->Log();
+  reward_server->Signal(SIGTERM);
+  EXPECT_EQ(reward_server->Wait(std::chrono::seconds(30)), 0) << reward_server->Log();
+  const auto rows = ReadMetrics(dir + "/run/metrics.csv");
+  ASSERT_EQ(rows.size(), 8u);
+  for (const auto& row : rows) {
+    EXPECT_EQ(row.at("policy_lag"), 0.0) << "iteration " << row.at("iteration");
+    EXPECT_LT(std::abs(row.at("behaviour_kl")), 1e-6) << "iteration " << row.at("iteration");
+    EXPECT_EQ(row.at("dropped_stale"), 0.0) << "iteration " << row.at("iteration");
+  }
 }
 
 TEST(IntegrationTest, EachCreditModeSplitsAsDocumented) {

@@ -8,12 +8,17 @@ reward Score throughput for count, rnd, sf with 2 and 4 agents; counterfactual s
 learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds
        (--scenario, --reward; further training flags after --); final success
        rate, env steps to 80% and 90%, and imca's credit diagnostics.
+       With --variants FILE (a JSON object {"name": {train flag: value}}),
+       an ablation: every variant x credit x seed, and a table of medians of
+       env steps and wall-clock to 90% success. --out DIR resumes: finished
+       runs in DIR are read, not rerun.
 """
 import argparse
 import csv
 import datetime
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -21,9 +26,26 @@ import sys
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+import launch  # noqa: E402  (the metrics reader and success thresholds of ./imca train)
+
+
+def finished_run(out, budget):
+    """(summary, rows) of a run folder that reached `budget` uninterrupted, else None."""
+    try:
+        with open(os.path.join(out, "summary.json")) as f:
+            summary = json.load(f)
+    except (OSError, ValueError):
+        return None
+    if summary.get("interrupted") or summary.get("env_steps", 0) < budget:
+        return None
+    with open(os.path.join(out, "metrics.csv")) as f:
+        return summary, list(csv.DictReader(f))
 
 
 def train(out, extra):
+    if os.path.exists(out):
+        shutil.rmtree(out)  # An unfinished run starts over.
     r = subprocess.run(LAUNCH + ["--out", out, "--quiet"] + extra, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"imca bench: training failed: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
@@ -80,19 +102,88 @@ def tail_mean(rows, key, fraction=0.25):
     return statistics.mean(values) if values else None
 
 
+def load_variants(path):
+    """[(name, [train flags])] from a JSON object {name: {flag: value}}, in file order."""
+    try:
+        with open(path) as f:
+            spec = json.load(f)
+    except (OSError, ValueError) as error:
+        sys.exit(f"imca bench: --variants {path}: {error}")
+    if not isinstance(spec, dict) or not spec:
+        sys.exit(f"imca bench: --variants {path}: must be a non-empty object of name -> flags")
+    variants = []
+    for name, flags in spec.items():
+        if not isinstance(flags, dict) or not name.replace("_", "").replace("-", "").isalnum():
+            sys.exit(f"imca bench: --variants {path}: variant '{name}' must be a word mapping to an object of flags")
+        argv = []
+        for key, value in flags.items():
+            argv += [f"--{key.replace('_', '-')}", str(value).lower() if isinstance(value, bool) else str(value)]
+        variants.append((name, argv))
+    return variants
+
+
+def median_reached(values):
+    """Median over all seeds with not-reached (None) as infinitely late; None if that is the median."""
+    ordered = sorted(float("inf") if v is None else v for v in values)
+    if not ordered:
+        return None
+    m = statistics.median(ordered)
+    return None if m == float("inf") else m
+
+
+def to_90(rows, key):
+    """(env steps, wall seconds) at the first row with `key` >= 0.9, or (None, None)."""
+    row = launch.first_reaching(rows, 0.9, key)
+    return (int(row["env_steps"]), float(row["wall_seconds"])) if row else (None, None)
+
+
+def ablation_table(args, variants, modes, seeds, results):
+    """Medians over seeds; a seed that never got there counts as not reached (k/n)."""
+    print(f"\n{args.scenario} + {args.reward}, {args.steps:,} env steps, seeds {args.seeds}; success over the "
+          "last 200 training episodes (as marlbenchmark/on-policy) and over the last 200 evaluation episodes")
+    print("| variant | credit | env steps to 90%, training episodes: median (per seed) | reached "
+          "| wall-clock to 90%: median | env steps to 90%, evaluation: median | final success | env steps/s |")
+    print("|---|---|---|---|---|---|---|---|")
+    fmt = lambda x: "-" if x is None else f"{x / 1e6:.2f}M"
+    for name, _ in variants:
+        for credit in modes:
+            runs = [results[(name, credit, s)] for s in seeds]
+            train = [to_90(rows, "train_success_rate") for _, rows in runs]
+            evals = [to_90(rows, "success_rate")[0] for _, rows in runs]
+            reached = sum(1 for steps, _ in train if steps is not None)
+            wall = median_reached([w for _, w in train])
+            print(f"| {name} | {credit} | {fmt(median_reached([x for x, _ in train]))} "
+                  f"({' / '.join(fmt(x) for x, _ in train)}) | {reached}/{len(seeds)} "
+                  f"| {'-' if wall is None else f'{wall:.1f} s'} | {fmt(median_reached(evals))} "
+                  f"| {statistics.mean(s['final_train_success_rate'] for s, _ in runs):.0%} "
+                  f"| {statistics.median(s['env_steps_per_sec'] for s, _ in runs):,.0f} |")
+
+
 def learn(args, base):
     modes = args.credits.split(",")
     seeds = [int(s) for s in args.seeds.split(",")]
+    variants = load_variants(args.variants) if args.variants else [("default", [])]
     results = {}
-    for credit in modes:
-        for seed in seeds:
-            out = os.path.join(base, f"{credit}-seed{seed}")
-            summary, rows = train(out, ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
-                                        "--seed", str(seed), "--steps", str(args.steps)] + args.extra)
-            results[(credit, seed)] = (summary, rows)
-            print(f"{credit:12s} seed {seed}: final success {summary['final_success_rate']:.1%}, "
-                  f"steps to 80% {summary['steps_to_80pct_success']}, to 90% {summary['steps_to_90pct_success']}, "
-                  f"{summary['env_steps_per_sec']:.0f} steps/s", flush=True)
+    for name, variant_flags in variants:
+        for credit in modes:
+            for seed in seeds:
+                out = os.path.join(base, (f"{name}-" if args.variants else "") + f"{credit}-seed{seed}")
+                done = finished_run(out, args.steps)
+                if done is None:
+                    done = train(out, ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
+                                       "--seed", str(seed), "--steps", str(args.steps)] + variant_flags + args.extra)
+                summary, rows = done
+                results[(name, credit, seed)] = done
+                steps90, wall90 = to_90(rows, "train_success_rate")
+                print(f"{name:12s} {credit:12s} seed {seed}: final success {summary['final_success_rate']:.1%}, "
+                      f"to 90% (training episodes) {steps90} steps / {wall90} s, "
+                      f"to 90% (evaluation) {summary['steps_to_90pct_success']}, "
+                      f"{summary['env_steps_per_sec']:.0f} steps/s", flush=True)
+    ablation_table(args, variants, modes, seeds, results)
+    if args.variants:
+        print(f"\nrun folders: {base}")
+        return
+    results = {(credit, seed): results[("default", credit, seed)] for credit in modes for seed in seeds}
     steps = lambda xs: " / ".join("-" if x is None else f"{x / 1e6:.2f}M" for x in xs)
     print(f"\n{args.scenario} + {args.reward}, {args.steps:,} env steps, seeds {args.seeds}"
           + (f", flags {' '.join(args.extra)}" if args.extra else ""))
@@ -130,13 +221,16 @@ def main(argv):
     l.add_argument("--steps", type=int, default=2_000_000)
     l.add_argument("--scenario", default="coop_nav")
     l.add_argument("--reward", default="count")
+    l.add_argument("--variants", default="", help="JSON file {name: {train flag: value}}: an ablation")
+    l.add_argument("--out", default="", help="run folder (reruns skip its finished runs)")
     l.add_argument("extra", nargs="*", help="after --: more ./imca train flags, e.g. -- --beta 0.1")
     args = p.parse_args(argv)
     if args.what != "learn":
         args.extra = []
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    base = os.path.join(ROOT, "runs", f"bench-{args.what}-"
+    base = getattr(args, "out", "") or os.path.join(ROOT, "runs", f"bench-{args.what}-"
                         + (f"{args.scenario}-{args.reward}-" if args.what == "learn" else "") + stamp)
+    base = os.path.abspath(base)
     os.makedirs(base, exist_ok=True)
     {"speed": speed, "env": env_bench, "reward": reward_bench, "learn": learn}[args.what](args, base)
 
