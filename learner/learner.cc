@@ -131,7 +131,34 @@ absl::Status Learner::Push(v1::Unroll unroll) {
     ++unrolls_rejected_;
     return valid;
   }
+  {
+    absl::MutexLock lock(&mu_);
+    IMCA_RETURN_IF_ERROR(Admit(unroll));
+  }
+  // Featurised here, on the pushing (gRPC) thread, so that the training
+  // thread only computes values and GAE and trains.
+  QueuedUnroll queued = Featurise(std::move(unroll));
   absl::MutexLock lock(&mu_);
+  mu_.Await(absl::Condition(
+      +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
+        return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
+      },
+      this));
+  if (stopping_) return StoppedStatus();
+  const v1::Unroll& u = queued.unroll;
+  ++unrolls_received_;
+  actors_.insert(u.actor_id());
+  for (int i = 0; i < u.episode_returns_size(); ++i) {
+    PushWindow(&train_returns_, u.episode_returns(i), config_.metrics_window);
+  }
+  for (bool s : u.episode_success()) PushWindow(&train_success_, s, config_.metrics_window);
+  for (bool s : u.eval_success()) PushWindow(&eval_success_, s, config_.metrics_window);
+  queued_steps_ += Steps(u);
+  queue_.push_back(std::move(queued));
+  return absl::OkStatus();
+}
+
+absl::Status Learner::Admit(const v1::Unroll& unroll) {
   if (stopping_) return StoppedStatus();
   if (unroll.policy_version() > version_) {
     // A learner restarted from an older checkpoint: the actor must refetch.
@@ -157,22 +184,30 @@ absl::Status Learner::Push(v1::Unroll unroll) {
                                                       " is more than ", config_.max_policy_lag,
                                                       " behind ", version_));
   }
-  mu_.Await(absl::Condition(
-      +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
-        return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
-      },
-      this));
-  if (stopping_) return StoppedStatus();
-  ++unrolls_received_;
-  actors_.insert(unroll.actor_id());
-  for (int i = 0; i < unroll.episode_returns_size(); ++i) {
-    PushWindow(&train_returns_, unroll.episode_returns(i), config_.metrics_window);
-  }
-  for (bool s : unroll.episode_success()) PushWindow(&train_success_, s, config_.metrics_window);
-  for (bool s : unroll.eval_success()) PushWindow(&eval_success_, s, config_.metrics_window);
-  queued_steps_ += Steps(unroll);
-  queue_.push_back(std::move(unroll));
   return absl::OkStatus();
+}
+
+Learner::QueuedUnroll Learner::Featurise(v1::Unroll unroll) const {
+  const int n = scenario_->num_agents(), k = scenario_->state_size();
+  const int obs_dim = featurizer_.obs_dim(), critic_dim = this->critic_dim();
+  const int64_t T = unroll.length(), E = unroll.num_envs();
+  Clock::time_point lap = Clock::now();
+  QueuedUnroll q;
+  q.critic_inputs.resize((T + 1) * E * n * critic_dim);
+  for (int64_t row = 0; row < (T + 1) * E; ++row) {
+    for (int a = 0; a < n; ++a) {
+      CriticInputOf(unroll.states().data() + row * k, a, &q.critic_inputs[(row * n + a) * critic_dim]);
+    }
+  }
+  q.obs.resize(T * E * n * obs_dim);
+  for (int64_t row = 0; row < T * E; ++row) {
+    for (int a = 0; a < n; ++a) {
+      featurizer_.Observe(unroll.states().data() + row * k, a, &q.obs[(row * n + a) * obs_dim]);
+    }
+  }
+  q.unroll = std::move(unroll);
+  q.featurise_seconds = Lap(lap);
+  return q;
 }
 
 absl::Status Learner::StoppedStatus() const {
@@ -225,8 +260,8 @@ void Learner::Stop() {
   stopping_ = true;
 }
 
-std::vector<v1::Unroll> Learner::NextBatch() {
-  std::vector<v1::Unroll> batch;
+std::vector<Learner::QueuedUnroll> Learner::NextBatch() {
+  std::vector<QueuedUnroll> batch;
   int64_t steps = 0;
   absl::MutexLock lock(&mu_);
   while (steps < config_.batch_steps) {
@@ -236,15 +271,15 @@ std::vector<v1::Unroll> Learner::NextBatch() {
         },
         this));
     if (stopping_) return {};
-    v1::Unroll unroll = std::move(queue_.front());
+    QueuedUnroll queued = std::move(queue_.front());
     queue_.pop_front();
-    queued_steps_ -= Steps(unroll);
-    if (version_ - unroll.policy_version() > config_.max_policy_lag) {
+    queued_steps_ -= Steps(queued.unroll);
+    if (version_ - queued.unroll.policy_version() > config_.max_policy_lag) {
       ++unrolls_stale_;
       continue;
     }
-    steps += Steps(unroll);
-    batch.push_back(std::move(unroll));
+    steps += Steps(queued.unroll);
+    batch.push_back(std::move(queued));
   }
   return batch;
 }
@@ -257,7 +292,7 @@ absl::Status Learner::Run() {
     }
     phases_ = Phases();
     Clock::time_point lap = Clock::now();
-    std::vector<v1::Unroll> batch = NextBatch();
+    std::vector<QueuedUnroll> batch = NextBatch();
     phases_.wait = Lap(lap);
     if (batch.empty()) break;
     IMCA_RETURN_IF_ERROR(TrainOn(batch));
@@ -287,7 +322,7 @@ void Learner::CriticInputOf(const int32_t* state, int agent, float* out) const {
   out[features + agent] = 1.0f;
 }
 
-absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch) {
+absl::Status Learner::BuildBatch(const std::vector<QueuedUnroll>& unrolls, PpoBatch* batch) {
   const int n = scenario_->num_agents();
   const int k = scenario_->state_size();
   const int obs_dim = featurizer_.obs_dim();
@@ -295,18 +330,18 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
   const bool one_head = config_.ppo.value_heads == 1;
   const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
   auto critic_input = [&](const int32_t* state, int agent, float* out) { CriticInputOf(state, agent, out); };
+  int64_t total = 0;
+  for (const QueuedUnroll& q : unrolls) total += int64_t{q.unroll.length()} * q.unroll.num_envs() * n;
+  batch->obs.reserve(total * obs_dim);
+  batch->critic_inputs.reserve(total * critic_dim);
   Clock::time_point lap = Clock::now();
-  for (const v1::Unroll& u : unrolls) {
+  for (const QueuedUnroll& q : unrolls) {
+    const v1::Unroll& u = q.unroll;
     const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
-    // Critic inputs of states [T+1][E][n].
-    std::vector<float> inputs((T + 1) * M * critic_dim);
-    for (int64_t row = 0; row < (T + 1) * E; ++row) {
-      for (int a = 0; a < n; ++a) {
-        critic_input(u.states().data() + row * k, a, &inputs[(row * n + a) * critic_dim]);
-      }
-    }
+    phases_.featurise += q.featurise_seconds;
+    // Critic inputs of states [T+1][E][n], featurised by Push.
+    const std::vector<float>& inputs = q.critic_inputs;
     std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
-    phases_.featurise += Lap(lap);
     IMCA_RETURN_IF_ERROR(trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data()));
     // GAE reads final values only at truncated steps: evaluate just those
     // reached states (a few per unroll, not all T*E of them).
@@ -356,15 +391,8 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
     }
     phases_.gae += Lap(lap);
 
-    const int64_t offset = batch->size;
     batch->size += B;
-    batch->obs.resize(batch->size * obs_dim);
-    for (int64_t row = 0; row < T * E; ++row) {
-      for (int a = 0; a < n; ++a) {
-        featurizer_.Observe(u.states().data() + row * k, a, &batch->obs[(offset + row * n + a) * obs_dim]);
-      }
-    }
-    phases_.featurise += Lap(lap);
+    batch->obs.insert(batch->obs.end(), q.obs.begin(), q.obs.end());
     batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
     batch->actions.insert(batch->actions.end(), u.actions().begin(), u.actions().end());
     batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
@@ -379,9 +407,9 @@ absl::Status Learner::BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatc
   return absl::OkStatus();
 }
 
-absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
+absl::Status Learner::TrainOn(const std::vector<QueuedUnroll>& queued) {
   PpoBatch batch;
-  IMCA_RETURN_IF_ERROR(BuildBatch(unrolls, &batch));
+  IMCA_RETURN_IF_ERROR(BuildBatch(queued, &batch));
   IMCA_ASSIGN_OR_RETURN(PpoStats stats, trainer_->Train(batch));
   ++iteration_;
   int64_t steps = 0;
@@ -391,11 +419,11 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     absl::MutexLock lock(&mu_);
     version = version_;
   }
-  for (const v1::Unroll& u : unrolls) {
-    steps += Steps(u);
-    lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
+  for (const QueuedUnroll& q : queued) {
+    steps += Steps(q.unroll);
+    lag += static_cast<double>(version - q.unroll.policy_version()) / queued.size();
   }
-  const CreditStats credit = MeasureCredit(unrolls, batch.size);
+  const CreditStats credit = MeasureCredit(queued, batch.size);
   {
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
@@ -408,12 +436,13 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   return absl::OkStatus();
 }
 
-Learner::CreditStats Learner::MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const {
+Learner::CreditStats Learner::MeasureCredit(const std::vector<QueuedUnroll>& unrolls, int64_t agent_steps) const {
   const int n = scenario_->num_agents();
   CreditStats c;
   c.shares.assign(n, 0.0);
   int64_t shared_rows = 0, global_rows = 0, contribution_values = 0;
-  for (const v1::Unroll& u : unrolls) {
+  for (const QueuedUnroll& q : unrolls) {
+    const v1::Unroll& u = q.unroll;
     for (float r : u.intrinsic_rewards()) c.intrinsic += r;
     for (int64_t i = 0; i + n <= u.credit_shares_size(); i += n) {
       const float* row = u.credit_shares().data() + i;

@@ -125,11 +125,22 @@ class Learner {
   Learner(const env::Scenario* scenario, const LearnerConfig& config,
           std::unique_ptr<PpoTrainer> trainer);
 
+  // An accepted unroll with its network inputs, featurised by Push.
+  struct QueuedUnroll {
+    v1::Unroll unroll;
+    std::vector<float> obs;            // [T][E][n][obs_dim]
+    std::vector<float> critic_inputs;  // [T+1][E][n][critic_dim]
+    double featurise_seconds = 0;      // On the pushing thread.
+  };
+
+  // Push's checks of version, staleness and stopping; counts what it refuses.
+  absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  QueuedUnroll Featurise(v1::Unroll unroll) const;
   // Waits for unrolls worth batch_steps steps (or stop); drops stale ones.
-  std::vector<v1::Unroll> NextBatch();
+  std::vector<QueuedUnroll> NextBatch();
   absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
-  absl::Status BuildBatch(const std::vector<v1::Unroll>& unrolls, PpoBatch* batch);
+  absl::Status TrainOn(const std::vector<QueuedUnroll>& queued);
+  absl::Status BuildBatch(const std::vector<QueuedUnroll>& unrolls, PpoBatch* batch);
   // Writes the critic input of agent `agent` in `state` (critic_dim floats).
   void CriticInputOf(const int32_t* state, int agent, float* out) const;
   void Publish();
@@ -141,7 +152,7 @@ class Learner {
     double contribution_abs = 0;  // |r^a| (or d^a) per agent-step.
     std::vector<double> shares;   // p^a per agent slot.
   };
-  CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
+  CreditStats MeasureCredit(const std::vector<QueuedUnroll>& unrolls, int64_t agent_steps) const;
   void WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit);
 
   const env::Scenario* scenario_;
@@ -152,8 +163,9 @@ class Learner {
   std::ofstream metrics_;                // Training thread only.
   int64_t iteration_ = 0;                // Training thread only.
   // Wall seconds of the current iteration's phases (training thread only):
-  // waiting for unrolls, featurising (critic inputs and observations), the
-  // critic's values for GAE, GAE, copying into the batch, publishing.
+  // waiting for unrolls, featurising the batch's unrolls (on the pushing
+  // threads, off this one's path), the critic's values for GAE (with the
+  // truncation bootstraps' inputs), GAE, copying into the batch, publishing.
   struct Phases {
     double wait = 0, featurise = 0, values = 0, gae = 0, copy = 0, publish = 0;
   };
@@ -162,7 +174,7 @@ class Learner {
 
   mutable absl::Mutex mu_;
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
-  std::deque<v1::Unroll> queue_ ABSL_GUARDED_BY(mu_);
+  std::deque<QueuedUnroll> queue_ ABSL_GUARDED_BY(mu_);
   int64_t queued_steps_ ABSL_GUARDED_BY(mu_) = 0;
   // Synchronous mode: steps accepted for the current version.
   int64_t version_steps_ ABSL_GUARDED_BY(mu_) = 0;

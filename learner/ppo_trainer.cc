@@ -428,8 +428,11 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
 TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
   const int64_t b = batch.size;
   TrainData data;
-  data.obs = CopyFloats(batch.obs, {b, obs_dim_});
-  data.critic_inputs = CopyFloats(batch.critic_inputs, {b, critic_dim_});
+  // Views, not copies: `batch` outlives Train and is not modified meanwhile,
+  // and every minibatch gathers its rows anyway.
+  data.obs = torch::from_blob(const_cast<float*>(batch.obs.data()), {b, obs_dim_}, torch::kFloat32);
+  data.critic_inputs =
+      torch::from_blob(const_cast<float*>(batch.critic_inputs.data()), {b, critic_dim_}, torch::kFloat32);
   data.actions = torch::from_blob(const_cast<int32_t*>(batch.actions.data()), {b}, torch::kInt32)
                      .to(torch::kInt64);
   data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});

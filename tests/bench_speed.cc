@@ -142,7 +142,7 @@ void PrintPhases(const std::string& metrics_path, const std::string& prefix) {
   for (size_t i = 0; i < names.size(); ++i) {
     if (columns[i].empty()) continue;
     const double m = Median(columns[i]);
-    if (names[i] != "ms_wait") total += m;
+    if (names[i] != "ms_wait" && names[i] != "ms_featurise") total += m;  // The training thread's.
     std::printf("%s_%s %.2f\n", prefix.c_str(), names[i].c_str(), m);
   }
   std::printf("%s_ms_busy %.2f\n", prefix.c_str(), total);
