@@ -260,17 +260,15 @@ void Learner::Stop() {
   stopping_ = true;
 }
 
-std::vector<Learner::QueuedUnroll> Learner::NextBatch() {
-  std::vector<QueuedUnroll> batch;
-  int64_t steps = 0;
+std::optional<Learner::QueuedUnroll> Learner::NextUnroll() {
   absl::MutexLock lock(&mu_);
-  while (steps < config_.batch_steps) {
+  while (true) {
     mu_.Await(absl::Condition(
         +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
           return self->stopping_ || !self->queue_.empty();
         },
         this));
-    if (stopping_) return {};
+    if (stopping_) return std::nullopt;
     QueuedUnroll queued = std::move(queue_.front());
     queue_.pop_front();
     queued_steps_ -= Steps(queued.unroll);
@@ -278,10 +276,8 @@ std::vector<Learner::QueuedUnroll> Learner::NextBatch() {
       ++unrolls_stale_;
       continue;
     }
-    steps += Steps(queued.unroll);
-    batch.push_back(std::move(queued));
+    return queued;
   }
-  return batch;
 }
 
 absl::Status Learner::Run() {
@@ -290,12 +286,24 @@ absl::Status Learner::Run() {
       absl::MutexLock lock(&mu_);
       if (stopping_ || (config_.budget_steps > 0 && env_steps_ >= config_.budget_steps)) break;
     }
+    // Each unroll's values and advantages are computed as it arrives, while
+    // the actors still produce the rest of the batch.
     phases_ = Phases();
+    PpoBatch batch;
+    std::vector<v1::Unroll> unrolls;
+    int64_t steps = 0;
     Clock::time_point lap = Clock::now();
-    std::vector<QueuedUnroll> batch = NextBatch();
-    phases_.wait = Lap(lap);
-    if (batch.empty()) break;
-    IMCA_RETURN_IF_ERROR(TrainOn(batch));
+    while (steps < config_.batch_steps) {
+      std::optional<QueuedUnroll> queued = NextUnroll();
+      phases_.wait += Lap(lap);
+      if (!queued.has_value()) break;  // Stopping.
+      IMCA_RETURN_IF_ERROR(AppendToBatch(*queued, &batch));
+      lap = Clock::now();
+      steps += Steps(queued->unroll);
+      unrolls.push_back(std::move(queued->unroll));
+    }
+    if (steps < config_.batch_steps) break;
+    IMCA_RETURN_IF_ERROR(TrainOn(unrolls, batch));
     if (config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) {
       IMCA_RETURN_IF_ERROR(SaveCheckpoint());
     }
@@ -322,7 +330,7 @@ void Learner::CriticInputOf(const int32_t* state, int agent, float* out) const {
   out[features + agent] = 1.0f;
 }
 
-absl::Status Learner::BuildBatch(const std::vector<QueuedUnroll>& unrolls, PpoBatch* batch) {
+absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
   const int n = scenario_->num_agents();
   const int k = scenario_->state_size();
   const int obs_dim = featurizer_.obs_dim();
@@ -330,86 +338,82 @@ absl::Status Learner::BuildBatch(const std::vector<QueuedUnroll>& unrolls, PpoBa
   const bool one_head = config_.ppo.value_heads == 1;
   const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
   auto critic_input = [&](const int32_t* state, int agent, float* out) { CriticInputOf(state, agent, out); };
-  int64_t total = 0;
-  for (const QueuedUnroll& q : unrolls) total += int64_t{q.unroll.length()} * q.unroll.num_envs() * n;
-  batch->obs.reserve(total * obs_dim);
-  batch->critic_inputs.reserve(total * critic_dim);
-  Clock::time_point lap = Clock::now();
-  for (const QueuedUnroll& q : unrolls) {
-    const v1::Unroll& u = q.unroll;
-    const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
-    phases_.featurise += q.featurise_seconds;
-    // Critic inputs of states [T+1][E][n], featurised by Push.
-    const std::vector<float>& inputs = q.critic_inputs;
-    std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
-    IMCA_RETURN_IF_ERROR(trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data()));
-    // GAE reads final values only at truncated steps: evaluate just those
-    // reached states (a few per unroll, not all T*E of them).
-    std::vector<int64_t> truncated_rows;
-    for (int64_t row = 0; row < T * E; ++row) {
-      if (u.truncated(row) && !u.terminated(row) && !limit_terminal) truncated_rows.push_back(row);
-    }
-    if (!truncated_rows.empty()) {
-      const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
-      std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows);
-      for (size_t i = 0; i < truncated_rows.size(); ++i) {
-        for (int a = 0; a < n; ++a) {
-          critic_input(u.next_states().data() + truncated_rows[i] * k, a, &final_inputs[(i * n + a) * critic_dim]);
-        }
-      }
-      IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data()));
-      for (size_t i = 0; i < truncated_rows.size(); ++i) {
-        for (int a = 0; a < n; ++a) {
-          f_ext[truncated_rows[i] * n + a] = final_ext[i * n + a];
-          f_int[truncated_rows[i] * n + a] = final_int[i * n + a];
-        }
-      }
-    }
-    phases_.values += Lap(lap);
-    std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
-    for (int64_t row = 0; row < T * E; ++row) {
-      for (int a = 0; a < n; ++a) {
-        // kTerminal: the step limit cuts the return like termination.
-        terminated[row * n + a] = u.terminated(row) || (limit_terminal && u.truncated(row));
-        truncated[row * n + a] = u.truncated(row) && !limit_terminal;
-      }
-    }
-    std::vector<float> adv_ext(B), ret_ext(B), adv_int(B, 0.0f), ret_int(B, 0.0f);
-    if (one_head) {
-      // One value of r_ext + c_int * r_int, discounted with gamma.
-      std::vector<float> rewards(B);
-      for (int64_t i = 0; i < B; ++i) {
-        rewards[i] = u.rewards(i) + static_cast<float>(config_.intrinsic_coef) * u.intrinsic_rewards(i);
-      }
-      ComputeGae(T, M, rewards.data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
-                 config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
-    } else {
-      ComputeGae(T, M, u.rewards().data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
-                 config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
-      ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
-                 truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
-    }
-    phases_.gae += Lap(lap);
-
-    batch->size += B;
-    batch->obs.insert(batch->obs.end(), q.obs.begin(), q.obs.end());
-    batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
-    batch->actions.insert(batch->actions.end(), u.actions().begin(), u.actions().end());
-    batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
-                                      u.behaviour_log_probs().end());
-    for (int64_t i = 0; i < B; ++i) {
-      batch->advantages.push_back(adv_ext[i] + static_cast<float>(config_.intrinsic_coef) * adv_int[i]);
-    }
-    batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
-    batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
-    phases_.copy += Lap(lap);
+  if (batch->size == 0) {  // Room for the whole batch (the last unroll may overshoot).
+    batch->obs.reserve(config_.batch_steps * n * obs_dim);
+    batch->critic_inputs.reserve(config_.batch_steps * n * critic_dim);
   }
+  Clock::time_point lap = Clock::now();
+  const v1::Unroll& u = q.unroll;
+  const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
+  phases_.featurise += q.featurise_seconds;
+  // Critic inputs of states [T+1][E][n], featurised by Push.
+  const std::vector<float>& inputs = q.critic_inputs;
+  std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
+  IMCA_RETURN_IF_ERROR(trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data()));
+  // GAE reads final values only at truncated steps: evaluate just those
+  // reached states (a few per unroll, not all T*E of them).
+  std::vector<int64_t> truncated_rows;
+  for (int64_t row = 0; row < T * E; ++row) {
+    if (u.truncated(row) && !u.terminated(row) && !limit_terminal) truncated_rows.push_back(row);
+  }
+  if (!truncated_rows.empty()) {
+    const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
+    std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows);
+    for (size_t i = 0; i < truncated_rows.size(); ++i) {
+      for (int a = 0; a < n; ++a) {
+        critic_input(u.next_states().data() + truncated_rows[i] * k, a, &final_inputs[(i * n + a) * critic_dim]);
+      }
+    }
+    IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data()));
+    for (size_t i = 0; i < truncated_rows.size(); ++i) {
+      for (int a = 0; a < n; ++a) {
+        f_ext[truncated_rows[i] * n + a] = final_ext[i * n + a];
+        f_int[truncated_rows[i] * n + a] = final_int[i * n + a];
+      }
+    }
+  }
+  phases_.values += Lap(lap);
+  std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
+  for (int64_t row = 0; row < T * E; ++row) {
+    for (int a = 0; a < n; ++a) {
+      // kTerminal: the step limit cuts the return like termination.
+      terminated[row * n + a] = u.terminated(row) || (limit_terminal && u.truncated(row));
+      truncated[row * n + a] = u.truncated(row) && !limit_terminal;
+    }
+  }
+  std::vector<float> adv_ext(B), ret_ext(B), adv_int(B, 0.0f), ret_int(B, 0.0f);
+  if (one_head) {
+    // One value of r_ext + c_int * r_int, discounted with gamma.
+    std::vector<float> rewards(B);
+    for (int64_t i = 0; i < B; ++i) {
+      rewards[i] = u.rewards(i) + static_cast<float>(config_.intrinsic_coef) * u.intrinsic_rewards(i);
+    }
+    ComputeGae(T, M, rewards.data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
+               config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
+  } else {
+    ComputeGae(T, M, u.rewards().data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
+               config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
+    ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
+               truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
+  }
+  phases_.gae += Lap(lap);
+
+  batch->size += B;
+  batch->obs.insert(batch->obs.end(), q.obs.begin(), q.obs.end());
+  batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
+  batch->actions.insert(batch->actions.end(), u.actions().begin(), u.actions().end());
+  batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
+                                    u.behaviour_log_probs().end());
+  for (int64_t i = 0; i < B; ++i) {
+    batch->advantages.push_back(adv_ext[i] + static_cast<float>(config_.intrinsic_coef) * adv_int[i]);
+  }
+  batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
+  batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
+  phases_.copy += Lap(lap);
   return absl::OkStatus();
 }
 
-absl::Status Learner::TrainOn(const std::vector<QueuedUnroll>& queued) {
-  PpoBatch batch;
-  IMCA_RETURN_IF_ERROR(BuildBatch(queued, &batch));
+absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoBatch& batch) {
   IMCA_ASSIGN_OR_RETURN(PpoStats stats, trainer_->Train(batch));
   ++iteration_;
   int64_t steps = 0;
@@ -419,11 +423,11 @@ absl::Status Learner::TrainOn(const std::vector<QueuedUnroll>& queued) {
     absl::MutexLock lock(&mu_);
     version = version_;
   }
-  for (const QueuedUnroll& q : queued) {
-    steps += Steps(q.unroll);
-    lag += static_cast<double>(version - q.unroll.policy_version()) / queued.size();
+  for (const v1::Unroll& u : unrolls) {
+    steps += Steps(u);
+    lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
   }
-  const CreditStats credit = MeasureCredit(queued, batch.size);
+  const CreditStats credit = MeasureCredit(unrolls, batch.size);
   {
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
@@ -436,13 +440,12 @@ absl::Status Learner::TrainOn(const std::vector<QueuedUnroll>& queued) {
   return absl::OkStatus();
 }
 
-Learner::CreditStats Learner::MeasureCredit(const std::vector<QueuedUnroll>& unrolls, int64_t agent_steps) const {
+Learner::CreditStats Learner::MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const {
   const int n = scenario_->num_agents();
   CreditStats c;
   c.shares.assign(n, 0.0);
   int64_t shared_rows = 0, global_rows = 0, contribution_values = 0;
-  for (const QueuedUnroll& q : unrolls) {
-    const v1::Unroll& u = q.unroll;
+  for (const v1::Unroll& u : unrolls) {
     for (float r : u.intrinsic_rewards()) c.intrinsic += r;
     for (int64_t i = 0; i + n <= u.credit_shares_size(); i += n) {
       const float* row = u.credit_shares().data() + i;

@@ -6,6 +6,7 @@
 #include <deque>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -136,11 +137,15 @@ class Learner {
   // Push's checks of version, staleness and stopping; counts what it refuses.
   absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   QueuedUnroll Featurise(v1::Unroll unroll) const;
-  // Waits for unrolls worth batch_steps steps (or stop); drops stale ones.
-  std::vector<QueuedUnroll> NextBatch();
+  // Waits for the next queued unroll that is not stale (dropping and counting
+  // stale ones); nullopt once stopping.
+  std::optional<QueuedUnroll> NextUnroll();
   absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  absl::Status TrainOn(const std::vector<QueuedUnroll>& queued);
-  absl::Status BuildBatch(const std::vector<QueuedUnroll>& unrolls, PpoBatch* batch);
+  // Trains on `batch`, made of `unrolls`, publishes and writes metrics.
+  absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoBatch& batch);
+  // Appends an unroll's samples with their advantages and value targets
+  // (values from the current critic) to `batch`.
+  absl::Status AppendToBatch(const QueuedUnroll& queued, PpoBatch* batch);
   // Writes the critic input of agent `agent` in `state` (critic_dim floats).
   void CriticInputOf(const int32_t* state, int agent, float* out) const;
   void Publish();
@@ -152,7 +157,7 @@ class Learner {
     double contribution_abs = 0;  // |r^a| (or d^a) per agent-step.
     std::vector<double> shares;   // p^a per agent slot.
   };
-  CreditStats MeasureCredit(const std::vector<QueuedUnroll>& unrolls, int64_t agent_steps) const;
+  CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
   void WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit);
 
   const env::Scenario* scenario_;
