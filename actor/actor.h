@@ -25,7 +25,11 @@ struct ActorConfig {
   std::string actor_id = "actor-0";
   int num_envs = 16;         // E training envs.
   int unroll_length = 64;    // T steps per unroll.
-  int eval_envs = 2;         // Envs run with the same policy but never trained on.
+  // Envs run with the same policy but never trained on. 200 evaluation
+  // episodes (the learner's success window) span about 25k joint training
+  // steps of coop_nav with 2 actors x 32 envs at 16, and 190k at 2
+  // (docs/learner.md, "Success rate").
+  int eval_envs = 16;
   uint64_t seed = 1;
   std::chrono::milliseconds rpc_timeout{10000};
   int unrolls_per_stream = 256;  // PushUnrolls streams are reopened after this many.

@@ -17,9 +17,10 @@
 
 ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
 ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
-ABSL_FLAG(int, envs, 16, "environments stepped together");
-ABSL_FLAG(int, unroll_length, 64, "steps per unroll");
-ABSL_FLAG(int, eval_envs, 2, "evaluation environments (same policy, not trained on)");
+ABSL_FLAG(int, envs, imca::actor::ActorConfig{}.num_envs, "environments stepped together");
+ABSL_FLAG(int, unroll_length, imca::actor::ActorConfig{}.unroll_length, "steps per unroll");
+ABSL_FLAG(int, eval_envs, imca::actor::ActorConfig{}.eval_envs,
+          "evaluation environments (same policy, not trained on)");
 ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and --actor_id)");
 ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
 ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
