@@ -58,6 +58,26 @@ class ExperimentErrorsTest(unittest.TestCase):
         self.check_one_line([{"scenario": "coop_nav", "reward": "count", "credit": "imca",
                               "flags": {"envs_per_actor": 4, "envs-per-actor": 8}}], "twice")
 
+    def test_cells_run_with_other_defaults_are_not_mixed_in(self):
+        # A finished cell whose config.json records another value of a
+        # ./imca train setting (e.g. from before a change of defaults).
+        with tempfile.TemporaryDirectory() as tmp:
+            entries = [{"scenario": "coop_nav", "reward": "count", "credit": "shared", "seed": 1,
+                        "steps": 16000, "flags": SMALL}]
+            out = os.path.join(tmp, "out")
+            run_dir = cell_dir(out, "shared")
+            os.makedirs(run_dir)
+            with open(os.path.join(run_dir, "summary.json"), "w") as f:
+                json.dump({"env_steps": 16384, "interrupted": False, "final_success_rate": 0.0}, f)
+            with open(os.path.join(run_dir, "config.json"), "w") as f:
+                json.dump({"batch_steps": 1024, "lr": 0.123, "objective_added_later": 1}, f)
+            r = subprocess.run(EXPERIMENT + ["--grid", grid_file(tmp, entries), "--out", out],
+                               capture_output=True, text=True, timeout=60)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn("lr 0.123 where ./imca train now uses 0.0005", r.stderr)
+            self.assertIn("another --out", r.stderr)
+
     def test_unreadable_grid_names_the_flag(self):
         r = subprocess.run(EXPERIMENT + ["--grid", "/nonexistent/grid.json"], capture_output=True, text=True)
         self.assertEqual(r.returncode, 2)

@@ -199,6 +199,28 @@ def finished(run_dir, cell):
     return summary
 
 
+# config.json keys that name where and how a run was launched, not what it trained.
+UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "map"}
+
+
+def settings_conflict(run_dir, cell):
+    """A one-line description of the first setting in which a finished cell's
+    config.json differs from what ./imca train would now use for it (its
+    defaults changed since), or None. Settings the old run did not record
+    are not compared."""
+    try:
+        with open(os.path.join(run_dir, "config.json")) as f:
+            saved = json.load(f)
+    except (OSError, ValueError):
+        return None
+    with contextlib.redirect_stderr(io.StringIO()):
+        now = vars(launch.parse_args(train_argv(cell, run_dir)[3:]))
+    for key in sorted(set(saved) & set(now) - UNCOMPARED_SETTINGS):
+        if saved[key] != now[key]:
+            return f"{key} {saved[key]!r} where ./imca train now uses {now[key]!r}"
+    return None
+
+
 def default_jobs():
     # One run keeps about two cores busy (the learner, the actors and the
     # reward server); more runs than cores/2 slow every run down.
@@ -211,6 +233,11 @@ def run_cells(cells, out, jobs):
     for cell in cells:
         run_dir = os.path.join(out, "cells", cell_id(cell))
         if finished(run_dir, cell):
+            conflict = settings_conflict(run_dir, cell)
+            if conflict:
+                # Resuming would mix results of two different learners in one table.
+                raise ExperimentError(f"{run_dir} was run with {conflict} (its defaults changed since); "
+                                      "use another --out, or --report to redraw the old results")
             continue
         todo.append((cell, run_dir))
     done_before = len(cells) - len(todo)
