@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "learner/lap.h"
 #include "common/unroll_check.h"
@@ -43,25 +44,19 @@ int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); 
 
 }  // namespace
 
-std::string CriticInputName(CriticInput input) {
-  return input == CriticInput::kJointObs ? "joint_obs" : "state";
-}
+namespace {
 
-absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name) {
-  for (CriticInput c : {CriticInput::kState, CriticInput::kJointObs}) {
-    if (name == CriticInputName(c)) return c;
-  }
-  return absl::InvalidArgumentError(absl::StrCat("'", name, "' is not state or joint_obs"));
-}
+constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "state"},
+                                                       {CriticInput::kJointObs, "joint_obs"}};
+constexpr EnumName<TimeLimit> kTimeLimitNames[] = {{TimeLimit::kBootstrap, "bootstrap"},
+                                                   {TimeLimit::kTerminal, "terminal"}};
 
-std::string TimeLimitName(TimeLimit limit) { return limit == TimeLimit::kTerminal ? "terminal" : "bootstrap"; }
+}  // namespace
 
-absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name) {
-  for (TimeLimit t : {TimeLimit::kBootstrap, TimeLimit::kTerminal}) {
-    if (name == TimeLimitName(t)) return t;
-  }
-  return absl::InvalidArgumentError(absl::StrCat("'", name, "' is not bootstrap or terminal"));
-}
+std::string CriticInputName(CriticInput input) { return NameOf(input, kCriticInputNames); }
+absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name) { return ParseName(name, kCriticInputNames); }
+std::string TimeLimitName(TimeLimit limit) { return NameOf(limit, kTimeLimitNames); }
+absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name) { return ParseName(name, kTimeLimitNames); }
 
 absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
                                                          const LearnerConfig& config) {

@@ -19,6 +19,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "learner/lap.h"
 
@@ -673,15 +674,17 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
 
 // ---------------------------------------------------------------------------
 
-std::string PpoObjectiveName(PpoObjective objective) {
-  return objective == PpoObjective::kDecoupled ? "decoupled" : "behaviour";
-}
+namespace {
+
+constexpr EnumName<PpoObjective> kObjectiveNames[] = {{PpoObjective::kBehaviour, "behaviour"},
+                                                      {PpoObjective::kDecoupled, "decoupled"}};
+
+}  // namespace
+
+std::string PpoObjectiveName(PpoObjective objective) { return NameOf(objective, kObjectiveNames); }
 
 absl::StatusOr<PpoObjective> ParsePpoObjective(const std::string& name) {
-  for (PpoObjective o : {PpoObjective::kBehaviour, PpoObjective::kDecoupled}) {
-    if (name == PpoObjectiveName(o)) return o;
-  }
-  return absl::InvalidArgumentError(absl::StrCat("'", name, "' is not behaviour or decoupled"));
+  return ParseName(name, kObjectiveNames);
 }
 
 PpoTrainer::PpoTrainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}

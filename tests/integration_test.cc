@@ -48,6 +48,33 @@ std::unique_ptr<Subprocess> StartRewardServer(const std::string& dir, const std:
   return server;
 }
 
+// A learner on a free port with `flags` after the listen and port-file flags.
+std::unique_ptr<Subprocess> StartLearner(const std::string& dir, const std::vector<std::string>& flags, int* port) {
+  std::vector<std::string> argv = {kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port"};
+  argv.insert(argv.end(), flags.begin(), flags.end());
+  auto learner = std::make_unique<Subprocess>(argv, dir + "/learner.log");
+  EXPECT_TRUE(learner->Start());
+  *port = WaitForPortFile(dir + "/learner.port", *learner, std::chrono::seconds(60));
+  EXPECT_GT(*port, 0) << learner->Log();
+  return learner;
+}
+
+// `count` actors "actor-<i>" with 8 envs x 32-step unrolls, seeds 1.., and `flags`.
+std::vector<std::unique_ptr<Subprocess>> StartActors(const std::string& dir, int count, int learner_port,
+                                                     int reward_port, const std::vector<std::string>& flags = {}) {
+  std::vector<std::unique_ptr<Subprocess>> actors;
+  for (int i = 0; i < count; ++i) {
+    std::vector<std::string> argv = {kBin + "/actor", "--learner=127.0.0.1:" + std::to_string(learner_port),
+                                     "--reward_server=127.0.0.1:" + std::to_string(reward_port), "--envs=8",
+                                     "--unroll_length=32", "--seed=" + std::to_string(i + 1),
+                                     "--actor_id=actor-" + std::to_string(i)};
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    actors.push_back(std::make_unique<Subprocess>(argv, dir + "/actor-" + std::to_string(i) + ".log"));
+    EXPECT_TRUE(actors.back()->Start());
+  }
+  return actors;
+}
+
 v1::ScoreResponse DryRunScore(int port, const env::Scenario& scenario) {
   auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
   v1::ScoreRequest request;
@@ -92,24 +119,13 @@ TEST(IntegrationTest, ThreeServicesTrainAndStopCleanly) {
   auto reward_server = StartRewardServer(dir, "imca", &reward_port);
   ASSERT_GT(reward_port, 0);
 
-  Subprocess learner({kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port",
-                      "--run_dir=" + dir + "/run", "--steps=0", "--batch_steps=1024",
-                      "--checkpoint_every=2"},
-                     dir + "/learner.log");
-  ASSERT_TRUE(learner.Start());
-  const int learner_port = WaitForPortFile(dir + "/learner.port", learner, std::chrono::seconds(60));
-  ASSERT_GT(learner_port, 0) << learner.Log();
-
-  std::vector<std::unique_ptr<Subprocess>> actors;
-  for (int i = 0; i < 2; ++i) {
-    actors.push_back(std::make_unique<Subprocess>(
-        std::vector<std::string>{kBin + "/actor", "--learner=127.0.0.1:" + std::to_string(learner_port),
-                                 "--reward_server=127.0.0.1:" + std::to_string(reward_port),
-                                 "--envs=8", "--unroll_length=32", "--seed=" + std::to_string(i + 1),
-                                 "--actor_id=actor-" + std::to_string(i)},
-        dir + "/actor-" + std::to_string(i) + ".log"));
-    ASSERT_TRUE(actors.back()->Start());
-  }
+  int learner_port = 0;
+  auto learner_process = StartLearner(dir, {"--run_dir=" + dir + "/run", "--steps=0", "--batch_steps=1024",
+                                            "--checkpoint_every=2"},
+                                      &learner_port);
+  ASSERT_GT(learner_port, 0);
+  Subprocess& learner = *learner_process;
+  auto actors = StartActors(dir, 2, learner_port, reward_port);
 
   auto learner_stub = v1::LearnerService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(learner_port)));
   v1::LearnerStatus status;
@@ -187,24 +203,13 @@ TEST(IntegrationTest, SynchronousActorsActWithThePolicyTheLearnerTrains) {
   int reward_port = 0;
   auto reward_server = StartRewardServer(dir, "imca", &reward_port);
   ASSERT_GT(reward_port, 0);
-  Subprocess learner({kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port",
-                      "--run_dir=" + dir + "/run", "--steps=8192", "--batch_steps=1024", "--synchronous"},
-                     dir + "/learner.log");
-  ASSERT_TRUE(learner.Start());
-  const int learner_port = WaitForPortFile(dir + "/learner.port", learner, std::chrono::seconds(60));
-  ASSERT_GT(learner_port, 0) << learner.Log();
-  std::vector<std::unique_ptr<Subprocess>> actors;
-  for (int i = 0; i < 2; ++i) {
-    // 2 actors x 8 envs x 32 steps x 2 unrolls = 1024 steps: one batch per version.
-    actors.push_back(std::make_unique<Subprocess>(
-        std::vector<std::string>{kBin + "/actor", "--learner=127.0.0.1:" + std::to_string(learner_port),
-                                 "--reward_server=127.0.0.1:" + std::to_string(reward_port), "--envs=8",
-                                 "--unroll_length=32", "--sync_unrolls=2", "--seed=" + std::to_string(i + 1),
-                                 "--actor_id=actor-" + std::to_string(i)},
-        dir + "/actor-" + std::to_string(i) + ".log"));
-    ASSERT_TRUE(actors.back()->Start());
-  }
-  EXPECT_EQ(learner.Wait(std::chrono::seconds(180)), 0) << learner.Log();
+  int learner_port = 0;
+  auto learner = StartLearner(dir, {"--run_dir=" + dir + "/run", "--steps=8192", "--batch_steps=1024", "--synchronous"},
+                              &learner_port);
+  ASSERT_GT(learner_port, 0);
+  // 2 actors x 8 envs x 32 steps x 2 unrolls = 1024 steps: one batch per version.
+  auto actors = StartActors(dir, 2, learner_port, reward_port, {"--sync_unrolls=2"});
+  EXPECT_EQ(learner->Wait(std::chrono::seconds(180)), 0) << learner->Log();
   for (auto& actor : actors) EXPECT_EQ(actor->Wait(std::chrono::seconds(30)), 0) << actor->Log();
   reward_server->Signal(SIGTERM);
   EXPECT_EQ(reward_server->Wait(std::chrono::seconds(30)), 0) << reward_server->Log();

@@ -32,12 +32,8 @@ import launch  # noqa: E402  (the metrics reader and success thresholds of ./imc
 
 def finished_run(out, budget):
     """(summary, rows) of a run folder that reached `budget` uninterrupted, else None."""
-    try:
-        with open(os.path.join(out, "summary.json")) as f:
-            summary = json.load(f)
-    except (OSError, ValueError):
-        return None
-    if summary.get("interrupted") or summary.get("env_steps", 0) < budget:
+    summary = launch.finished_summary(out, budget)
+    if summary is None:
         return None
     with open(os.path.join(out, "metrics.csv")) as f:
         return summary, list(csv.DictReader(f))

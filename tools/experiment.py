@@ -189,14 +189,7 @@ def check_flags(cells):
 
 
 def finished(run_dir, cell):
-    try:
-        with open(os.path.join(run_dir, "summary.json")) as f:
-            summary = json.load(f)
-    except (OSError, ValueError):
-        return None
-    if summary.get("interrupted") or summary.get("env_steps", 0) < cell["steps"]:
-        return None
-    return summary
+    return launch.finished_summary(run_dir, cell["steps"])
 
 
 # config.json keys that name where and how a run was launched, not what it trained.

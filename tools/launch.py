@@ -257,6 +257,18 @@ def steps_to(rows, threshold, key="success_rate"):
     return int(row["env_steps"]) if row else None
 
 
+def finished_summary(run_dir, budget):
+    """summary.json of a run that reached `budget` env steps uninterrupted, else None."""
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            summary = json.load(f)
+    except (OSError, ValueError):
+        return None
+    if summary.get("interrupted") or summary.get("env_steps", 0) < budget:
+        return None
+    return summary
+
+
 def write_summary(run_dir, config, rows, interrupted):
     last = rows[-1] if rows else None
     summary = {
