@@ -83,10 +83,12 @@ class Learner {
   static absl::StatusOr<std::unique_ptr<Learner>> Create(const env::Scenario* scenario,
                                                          const LearnerConfig& config);
 
-  // Validates `unroll` and queues it for training; blocks while the queue is
-  // full (back-pressure). Returns OK when queued; INVALID_ARGUMENT naming the
-  // field; FAILED_PRECONDITION "stale ..." when it is more than max_policy_lag
-  // versions old (counted, dropped) or "ahead ..." when its version is newer
+  // Validates `unroll`, featurises it on the calling thread and queues it for
+  // training; blocks while the queue is full (back-pressure). Returns OK when
+  // queued; INVALID_ARGUMENT naming the field; FAILED_PRECONDITION "stale ..."
+  // when it is more than max_policy_lag versions old, or (synchronous) not of
+  // the current version or beyond its full batch (counted, dropped), or
+  // "ahead ..." when its version is newer
   // than the learner's (a learner resumed from an older checkpoint: refetch
   // the policy); OUT_OF_RANGE once the budget is done; UNAVAILABLE once the
   // learner is stopping for another reason.
@@ -109,9 +111,11 @@ class Learner {
   int critic_dim() const;
 
   // Bytes an iteration of `steps` joint env steps needs for its features:
-  // steps * n * (obs_dim + critic_dim) floats, four times (the batch, the
-  // trainer's tensors, the critic inputs built per unroll, the minibatch
-  // gathers and activations). Measured on coop_nav: the learner's peak grew
+  // steps * n * (obs_dim + critic_dim) floats, four times (the batch; the
+  // featurised unrolls it is gathered from and those waiting in the queue;
+  // the minibatch gathers and activations; the trainer works on views of the
+  // batch, not copies). Measured on
+  // coop_nav before unrolls were featurised on push: the learner's peak grew
   // 5.8 KB per joint step against this estimate's 7.0 KB.
   int64_t IterationBytes(int64_t steps) const;
 
