@@ -50,16 +50,7 @@ bool Actor::RefreshPolicy(bool wait) {
         policy_.reset();
         continue;
       }
-      absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
-      if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() ||
-          mlp->num_actions() != scenario_->num_actions()) {
-        policy_error_ = absl::InternalError(absl::StrCat(
-            "learner's policy does not fit ", scenario_->name(), ": ",
-            mlp.ok() ? "observation or action size differs" : mlp.status().message()));
-        return false;
-      }
-      policy_ = *std::move(mlp);
-      return true;
+      return Adopt(policy);
     }
     if (!wait) return false;
     backoff.Wait();
@@ -93,17 +84,21 @@ bool Actor::AwaitPolicy(int64_t min_version) {
       if (LearnerDone()) return false;
       continue;
     }
-    absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
-    if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() || mlp->num_actions() != scenario_->num_actions()) {
-      policy_error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ",
-                                                       mlp.ok() ? "observation or action size differs"
-                                                                : mlp.status().message()));
-      return false;
-    }
-    policy_ = *std::move(mlp);
-    return true;
+    return Adopt(policy);
   }
   return false;
+}
+
+bool Actor::Adopt(const v1::Policy& policy) {
+  absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
+  if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() || mlp->num_actions() != scenario_->num_actions()) {
+    policy_error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ",
+                                                     mlp.ok() ? "observation or action size differs"
+                                                              : mlp.status().message()));
+    return false;
+  }
+  policy_ = *std::move(mlp);
+  return true;
 }
 
 void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,

@@ -70,6 +70,9 @@ class Actor {
   // >= min_version, or goes back to an older one (a restart from an older
   // checkpoint). Returns false on shutdown or when the learner is done.
   bool AwaitPolicy(int64_t min_version);
+  // Makes `policy` the acting policy; false (and policy_error_ set) if it
+  // does not fit this scenario.
+  bool Adopt(const v1::Policy& policy);
   void Rollout(v1::Unroll* unroll);
   void SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
                      float* probs);

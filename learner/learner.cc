@@ -222,7 +222,7 @@ std::shared_ptr<const v1::Policy> Learner::WaitForPolicy(int64_t min_version, ab
   } wanted{this, min_version};
   absl::MutexLock lock(&mu_);
   mu_.AwaitWithTimeout(absl::Condition(
-                           +[](Wanted* w) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                           +[](Wanted* w) ABSL_EXCLUSIVE_LOCKS_REQUIRED(w->self->mu_) {
                              return w->self->stopping_ || w->self->version_ >= w->min_version;
                            },
                            &wanted),
