@@ -284,7 +284,8 @@ absl::Status Learner::Run() {
     // Each unroll's values and advantages are computed as it arrives, while
     // the actors still produce the rest of the batch.
     phases_ = Phases();
-    PpoBatch batch;
+    batch_.Clear();
+    PpoBatch& batch = batch_;
     std::vector<v1::Unroll> unrolls;
     int64_t steps = 0;
     Clock::time_point lap = Clock::now();

@@ -179,6 +179,7 @@ class Learner {
     double wait = 0, featurise = 0, values = 0, gae = 0, copy = 0, publish = 0;
   };
   Phases phases_;
+  PpoBatch batch_;                       // Training thread only; reused every iteration.
   double wall_offset_ = 0;               // Seconds of earlier runs (resume).
 
   mutable absl::Mutex mu_;
