@@ -34,33 +34,17 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
 }
 
 bool Actor::RefreshPolicy(bool wait) {
-  Backoff backoff;
-  while (!ShutdownRequested()) {
-    grpc::ClientContext context;
-    context.set_deadline(DeadlineIn(config_.rpc_timeout));
-    v1::GetPolicyRequest request;
-    request.set_min_version(policy_.has_value() ? policy_->version() + 1 : 0);
-    v1::Policy policy;
-    const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
-    if (status.ok()) {
-      if (policy.tensors_size() == 0) {
-        // Not modified, unless the learner went back to an older checkpoint:
-        // then take whatever it has.
-        if (!policy_.has_value() || policy.version() >= policy_->version()) return true;
-        policy_.reset();
-        continue;
-      }
-      return Adopt(policy);
-    }
-    if (!wait) return false;
-    backoff.Wait();
-  }
-  return false;
+  return FetchPolicy(policy_.has_value() ? policy_->version() + 1 : 0, /*retry=*/wait, /*until_newer=*/false);
 }
 
 bool Actor::AwaitPolicy(int64_t min_version) {
-  // Each poll waits on the learner for at most half the deadline.
-  const int wait_ms = static_cast<int>(std::clamp<int64_t>(config_.rpc_timeout.count() / 2, 1, 5000));
+  return FetchPolicy(min_version, /*retry=*/true, /*until_newer=*/true);
+}
+
+bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
+  // A long poll waits on the learner for at most half the deadline.
+  const int wait_ms =
+      until_newer ? static_cast<int>(std::clamp<int64_t>(config_.rpc_timeout.count() / 2, 1, 5000)) : 0;
   Backoff backoff;
   while (!ShutdownRequested()) {
     grpc::ClientContext context;
@@ -71,20 +55,21 @@ bool Actor::AwaitPolicy(int64_t min_version) {
     v1::Policy policy;
     const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
     if (!status.ok()) {
-      if (LearnerDone()) return false;
+      if (!retry || (until_newer && LearnerDone())) return false;
       backoff.Wait();
       continue;
     }
     backoff.Reset();
-    if (policy.tensors_size() == 0) {
-      if (policy_.has_value() && policy.version() < policy_->version()) {
-        policy_.reset();  // The learner went back to an older checkpoint.
-        return RefreshPolicy(/*wait=*/true);
-      }
-      if (LearnerDone()) return false;
+    if (policy.tensors_size() > 0) return Adopt(policy);
+    if (policy_.has_value() && policy.version() < policy_->version()) {
+      // Not modified, but the learner went back to an older checkpoint:
+      // take whatever it has.
+      policy_.reset();
+      min_version = 0;
       continue;
     }
-    return Adopt(policy);
+    if (!until_newer) return true;  // Nothing newer: keep acting with ours.
+    if (LearnerDone()) return false;
   }
   return false;
 }

@@ -70,6 +70,10 @@ class Actor {
   // >= min_version, or goes back to an older one (a restart from an older
   // checkpoint). Returns false on shutdown or when the learner is done.
   bool AwaitPolicy(int64_t min_version);
+  // Both of the above: GetPolicy(min_version), retrying errors with backoff
+  // if `retry`; with `until_newer`, long-polls until a version >= min_version
+  // arrives instead of returning true on "not modified".
+  bool FetchPolicy(int64_t min_version, bool retry, bool until_newer);
   // Makes `policy` the acting policy; false (and policy_error_ set) if it
   // does not fit this scenario.
   bool Adopt(const v1::Policy& policy);

@@ -44,7 +44,7 @@ absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
   if (layer_norm) {
     absl::StatusOr<LayerNorm> norm = read_norm("policy.input_norm", policy.obs_dim());
     if (!norm.ok()) return norm.status();
-    mlp.input_norm_.push_back(*std::move(norm));
+    mlp.input_norm_ = *std::move(norm);
   }
   int64_t in = policy.obs_dim();
   for (int layer = 0;; ++layer) {
@@ -100,17 +100,17 @@ void PolicyMlp::Probabilities(const float* obs, int batch, float* probs) {
   Eigen::Map<const Matrix> raw(obs, batch, obs_dim_);
   const size_t layers = weights_.size();
   // Scratch only grows, so alternating batch sizes allocate nothing.
-  if (!input_norm_.empty()) {
+  if (input_norm_.has_value()) {
     if (normed_input_.rows() < batch) normed_input_.resize(batch, obs_dim_);
     normed_input_.topRows(batch) = raw;
-    ApplyLayerNorm(input_norm_[0], normed_input_.topRows(batch));
+    ApplyLayerNorm(*input_norm_, normed_input_.topRows(batch));
   }
   for (size_t i = 0; i < layers; ++i) {
     if (scratch_[i].rows() < batch) scratch_[i].resize(batch, weights_[i].rows());
     auto out = scratch_[i].topRows(batch);
     if (i > 0) {
       out.noalias() = scratch_[i - 1].topRows(batch) * weights_[i].transpose();
-    } else if (!input_norm_.empty()) {
+    } else if (input_norm_.has_value()) {
       out.noalias() = normed_input_.topRows(batch) * weights_[i].transpose();
     } else {
       out.noalias() = raw * weights_[i].transpose();

@@ -2,6 +2,7 @@
 #define IMCA_COMMON_POLICY_MLP_H_
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -44,7 +45,7 @@ class PolicyMlp {
   std::vector<Matrix> weights_;  // [out, in]
   std::vector<Eigen::RowVectorXf> biases_;
   // "mlp_tanh_layernorm" only: on the input, and after each hidden tanh.
-  std::vector<LayerNorm> input_norm_;   // Empty or one.
+  std::optional<LayerNorm> input_norm_;
   std::vector<LayerNorm> hidden_norms_; // Empty or one per hidden layer.
   Matrix normed_input_;
   std::vector<Matrix> scratch_;

@@ -188,17 +188,16 @@ Learner::QueuedUnroll Learner::Featurise(v1::Unroll unroll) const {
   const int64_t T = unroll.length(), E = unroll.num_envs();
   Clock::time_point lap = Clock::now();
   QueuedUnroll q;
+  q.obs.resize(T * E * n * obs_dim);
   q.critic_inputs.resize((T + 1) * E * n * critic_dim);
   for (int64_t row = 0; row < (T + 1) * E; ++row) {
-    for (int a = 0; a < n; ++a) {
-      CriticInputOf(unroll.states().data() + row * k, a, &q.critic_inputs[(row * n + a) * critic_dim]);
+    const int32_t* state = unroll.states().data() + row * k;
+    float* obs = nullptr;  // The bootstrap states (row >= T * E) are not acted on.
+    if (row < T * E) {
+      obs = &q.obs[row * n * obs_dim];
+      for (int a = 0; a < n; ++a) featurizer_.Observe(state, a, obs + a * obs_dim);
     }
-  }
-  q.obs.resize(T * E * n * obs_dim);
-  for (int64_t row = 0; row < T * E; ++row) {
-    for (int a = 0; a < n; ++a) {
-      featurizer_.Observe(unroll.states().data() + row * k, a, &q.obs[(row * n + a) * obs_dim]);
-    }
+    CriticInputsOf(state, obs, &q.critic_inputs[row * n * critic_dim]);
   }
   q.unroll = std::move(unroll);
   q.featurise_seconds = Lap(lap);
@@ -312,18 +311,22 @@ absl::Status Learner::Run() {
   return SaveCheckpoint();
 }
 
-void Learner::CriticInputOf(const int32_t* state, int agent, float* out) const {
-  const int n = scenario_->num_agents();
-  int features;
-  if (config_.critic_input == CriticInput::kJointObs) {
-    features = n * featurizer_.obs_dim();
-    for (int a = 0; a < n; ++a) featurizer_.Observe(state, a, out + a * featurizer_.obs_dim());
-  } else {
-    features = featurizer_.global_dim();
+void Learner::CriticInputsOf(const int32_t* state, const float* obs, float* out) const {
+  const int n = scenario_->num_agents(), obs_dim = featurizer_.obs_dim(), critic_dim = this->critic_dim();
+  const int features = critic_dim - n;  // The part every agent shares; then the agent id.
+  if (config_.critic_input == CriticInput::kState) {
     featurizer_.GlobalState(state, out);
+  } else if (obs != nullptr) {
+    std::copy(obs, obs + n * obs_dim, out);
+  } else {
+    for (int a = 0; a < n; ++a) featurizer_.Observe(state, a, out + a * obs_dim);
   }
-  std::fill(out + features, out + features + n, 0.0f);
-  out[features + agent] = 1.0f;
+  for (int a = 0; a < n; ++a) {
+    float* row = out + a * critic_dim;
+    if (a > 0) std::copy(out, out + features, row);
+    std::fill(row + features, row + critic_dim, 0.0f);
+    row[features + a] = 1.0f;
+  }
 }
 
 absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
@@ -333,7 +336,6 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
   const int critic_dim = this->critic_dim();
   const bool one_head = config_.ppo.value_heads == 1;
   const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
-  auto critic_input = [&](const int32_t* state, int agent, float* out) { CriticInputOf(state, agent, out); };
   if (batch->size == 0) {  // Room for the whole batch (the last unroll may overshoot).
     batch->obs.reserve(config_.batch_steps * n * obs_dim);
     batch->critic_inputs.reserve(config_.batch_steps * n * critic_dim);
@@ -356,9 +358,7 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
     const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
     std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows);
     for (size_t i = 0; i < truncated_rows.size(); ++i) {
-      for (int a = 0; a < n; ++a) {
-        critic_input(u.next_states().data() + truncated_rows[i] * k, a, &final_inputs[(i * n + a) * critic_dim]);
-      }
+      CriticInputsOf(u.next_states().data() + truncated_rows[i] * k, nullptr, &final_inputs[i * n * critic_dim]);
     }
     IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data()));
     for (size_t i = 0; i < truncated_rows.size(); ++i) {

@@ -150,8 +150,11 @@ class Learner {
   // Appends an unroll's samples with their advantages and value targets
   // (values from the current critic) to `batch`.
   absl::Status AppendToBatch(const QueuedUnroll& queued, PpoBatch* batch);
-  // Writes the critic input of agent `agent` in `state` (critic_dim floats).
-  void CriticInputOf(const int32_t* state, int agent, float* out) const;
+  // Writes the critic inputs of every agent in `state`, [n][critic_dim]: the
+  // state's encoding once, copied per agent with its id. `obs`, if not null,
+  // holds the agents' observations of `state` ([n][obs_dim]), which the
+  // joint-observation input reuses instead of observing again.
+  void CriticInputsOf(const int32_t* state, const float* obs, float* out) const;
   void Publish();
   // Means over one batch of the reward server's credit diagnostics.
   struct CreditStats {

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -33,30 +32,27 @@ namespace internal {
 // Outside the clip range on the side the advantage pushes towards, the min
 // selects the clamped (constant) term, so such samples give no gradient.
 // Not in an anonymous namespace so that the unit test can call it.
-torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
-                                   const torch::Tensor& behaviour_log_probs,
-                                   const torch::Tensor& advantages, double clip) {
-  const torch::Tensor ratio = torch::exp(log_probs - behaviour_log_probs);
-  const torch::Tensor unclipped = ratio * advantages;
-  const torch::Tensor clipped = torch::clamp(ratio, 1.0 - clip, 1.0 + clip) * advantages;
-  return -torch::min(unclipped, clipped).mean();
-}
-
 // Decoupled PPO (Hilton et al. 2021): the clip is measured against the
 // proximal policy, the behaviour policy enters only as the importance weight
 //   -mean(w * min(r A, clamp(r, 1 - clip, 1 + clip) A)),
 //   r = exp(log_probs - proximal), w = exp(proximal - behaviour).
-// `proximal` and `behaviour` carry no gradient. With proximal == behaviour it
-// is ClippedSurrogateLoss.
+// `proximal` and `behaviour` carry no gradient. With proximal == behaviour
+// (w = 1) it is the textbook surrogate, ClippedSurrogateLoss.
 torch::Tensor DecoupledSurrogateLoss(const torch::Tensor& log_probs,
                                      const torch::Tensor& proximal_log_probs,
                                      const torch::Tensor& behaviour_log_probs,
                                      const torch::Tensor& advantages, double clip) {
   const torch::Tensor ratio = torch::exp(log_probs - proximal_log_probs);
-  const torch::Tensor weight = torch::exp(proximal_log_probs - behaviour_log_probs);
   const torch::Tensor unclipped = ratio * advantages;
   const torch::Tensor clipped = torch::clamp(ratio, 1.0 - clip, 1.0 + clip) * advantages;
+  const torch::Tensor weight = torch::exp(proximal_log_probs - behaviour_log_probs);
   return -(weight * torch::min(unclipped, clipped)).mean();
+}
+
+torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
+                                   const torch::Tensor& behaviour_log_probs,
+                                   const torch::Tensor& advantages, double clip) {
+  return DecoupledSurrogateLoss(log_probs, behaviour_log_probs, behaviour_log_probs, advantages, clip);
 }
 
 }  // namespace internal
@@ -349,10 +345,14 @@ double BehaviourKl(const torch::Tensor& log_probs, const torch::Tensor& behaviou
 
 // [layer_norm, value_heads, number of optimisers]: what a checkpoint must
 // agree on beyond the sizes in "dims".
-torch::Tensor ArchitectureTensor(const PpoConfig& config) {
-  return torch::tensor({int64_t{config.layer_norm}, int64_t{config.value_heads},
-                        int64_t{config.separate_optimizers ? 2 : 1}},
-                       torch::kInt64);
+std::vector<int64_t> Architecture(const PpoConfig& config) {
+  return {int64_t{config.layer_norm}, int64_t{config.value_heads}, config.separate_optimizers ? 2 : 1};
+}
+
+// The elements of an integer tensor of any shape.
+std::vector<int64_t> Int64s(const torch::Tensor& t) {
+  const torch::Tensor c = t.to(torch::kInt64).flatten().contiguous();
+  return std::vector<int64_t>(c.data_ptr<int64_t>(), c.data_ptr<int64_t>() + c.numel());
 }
 
 }  // namespace
@@ -489,35 +489,30 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   const torch::Tensor actions = data.actions.index_select(0, indices);
   const torch::Tensor behaviour = data.behaviour_log_probs.index_select(0, indices);
   const torch::Tensor advantages = data.advantages.index_select(0, indices);
-  // The policy the clip is measured against.
-  const bool decoupled = config_.objective == PpoObjective::kDecoupled;
-  const torch::Tensor anchor =
-      decoupled ? data.start_log_probs.index_select(0, indices) : behaviour;
+  // The policy the clip is measured against: the proximal one (decoupled),
+  // else the behaviour policy itself (importance weight 1).
+  const torch::Tensor anchor = config_.objective == PpoObjective::kDecoupled
+                                   ? data.start_log_probs.index_select(0, indices)
+                                   : behaviour;
 
   const torch::Tensor log_probs_all =
       torch::log_softmax(model_.actor->forward(data.obs.index_select(0, indices)), /*dim=*/1);
   const torch::Tensor log_probs = log_probs_all.gather(1, actions.unsqueeze(1)).squeeze(1);
   const torch::Tensor entropy = -(log_probs_all.exp() * log_probs_all).sum(1).mean();
   const torch::Tensor policy_loss =
-      decoupled
-          ? internal::DecoupledSurrogateLoss(log_probs, anchor, behaviour, advantages, config_.clip)
-          : internal::ClippedSurrogateLoss(log_probs, behaviour, advantages, config_.clip);
+      internal::DecoupledSurrogateLoss(log_probs, anchor, behaviour, advantages, config_.clip);
   const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
   const torch::Tensor targets = data.value_targets.index_select(0, indices);
-  const auto error_loss = [&](const torch::Tensor& error) {
-    if (config_.huber_delta > 0) {
-      const torch::Tensor abs = error.abs();
-      const double d = config_.huber_delta;
-      return torch::where(abs <= d, 0.5 * error.pow(2), d * (abs - 0.5 * d));
-    }
-    return error.pow(2);
+  const auto error_loss = [&](const torch::Tensor& predictions) {
+    return config_.huber_delta > 0
+               ? torch::huber_loss(predictions, targets, at::Reduction::None, config_.huber_delta)
+               : torch::mse_loss(predictions, targets, at::Reduction::None);
   };
-  torch::Tensor per_sample = error_loss(values - targets);
+  torch::Tensor per_sample = error_loss(values);
   if (config_.value_clip > 0) {
     const torch::Tensor start = data.start_values.index_select(0, indices);
-    const torch::Tensor clipped =
-        start + torch::clamp(values - start, -config_.value_clip, config_.value_clip);
-    per_sample = torch::max(per_sample, error_loss(clipped - targets));
+    per_sample = torch::max(
+        per_sample, error_loss(start + torch::clamp(values - start, -config_.value_clip, config_.value_clip)));
   }
   // Mean per head, summed over the heads.
   const torch::Tensor value_loss = per_sample.mean(/*dim=*/0).sum();
@@ -592,7 +587,7 @@ void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   torch::serialize::OutputArchive critic(archive.compilation_unit());
   model_.critic->save(critic);
   archive.write("critic", critic);
-  archive.write("architecture", ArchitectureTensor(config_));
+  archive.write("architecture", torch::tensor(Architecture(config_), torch::kInt64));
   for (size_t i = 0; i < model_.optimizers.size(); ++i) {
     torch::serialize::OutputArchive optimizer(archive.compilation_unit());
     model_.optimizers[i]->save(optimizer);
@@ -611,23 +606,18 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
   torch::Tensor dims;
   archive.read("dims", dims);
   const std::vector<int64_t> want = {obs_dim_, critic_dim_, num_actions_, config_.hidden};
-  const torch::Tensor got = dims.to(torch::kInt64).flatten().contiguous();
-  const std::vector<int64_t> have(got.data_ptr<int64_t>(), got.data_ptr<int64_t>() + got.numel());
+  const std::vector<int64_t> have = Int64s(dims);
   if (have != want) {
     return absl::InvalidArgumentError(absl::StrCat(
         "checkpoint ", path, " has (obs_dim, critic_dim, num_actions, hidden) = (",
         absl::StrJoin(have, ", "), "), this trainer has (", absl::StrJoin(want, ", "), ")"));
   }
   torch::Tensor architecture;
-  if (!archive.try_read("architecture", architecture)) {
-    architecture = torch::tensor({int64_t{0}, int64_t{2}, int64_t{1}}, torch::kInt64);
-  }
-  const torch::Tensor arch = architecture.to(torch::kInt64).flatten().contiguous();
-  const std::vector<int64_t> arch_have(arch.data_ptr<int64_t>(),
-                                       arch.data_ptr<int64_t>() + arch.numel());
-  const torch::Tensor arch_want_t = ArchitectureTensor(config_);
-  const std::vector<int64_t> arch_want(arch_want_t.data_ptr<int64_t>(),
-                                       arch_want_t.data_ptr<int64_t>() + arch_want_t.numel());
+  // Checkpoints from before these options hold the original architecture.
+  const std::vector<int64_t> arch_have = archive.try_read("architecture", architecture)
+                                             ? Int64s(architecture)
+                                             : std::vector<int64_t>{0, 2, 1};
+  const std::vector<int64_t> arch_want = Architecture(config_);
   if (arch_have != arch_want) {
     return absl::InvalidArgumentError(absl::StrCat(
         "checkpoint ", path, " has (layer_norm, value_heads, optimizers) = (",
@@ -742,12 +732,12 @@ absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float
                                              {batch, impl_->critic_dim_}, torch::kFloat32);
     const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
     const auto v = out.accessor<double, 2>();
-    const RunningMeanVar& ext = impl_->ext_norm_;
-    const RunningMeanVar& intr = impl_->int_norm_;
+    const double ext_std = impl_->ext_norm_.stddev(), ext_mean = impl_->ext_norm_.mean();
+    const double int_std = impl_->int_norm_.stddev(), int_mean = impl_->int_norm_.mean();
     const bool two_heads = impl_->config_.value_heads == 2;
     for (int64_t i = 0; i < batch; ++i) {
-      v_ext[i] = static_cast<float>(v[i][0] * ext.stddev() + ext.mean());
-      v_int[i] = two_heads ? static_cast<float>(v[i][1] * intr.stddev() + intr.mean()) : 0.0f;
+      v_ext[i] = static_cast<float>(v[i][0] * ext_std + ext_mean);
+      v_int[i] = two_heads ? static_cast<float>(v[i][1] * int_std + int_mean) : 0.0f;
     }
   } catch (const c10::Error& e) {
     return absl::InternalError(absl::StrCat("critic forward: ", e.what_without_backtrace()));
