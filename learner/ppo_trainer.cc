@@ -622,7 +622,8 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
     return absl::InvalidArgumentError(absl::StrCat(
         "checkpoint ", path, " has (layer_norm, value_heads, optimizers) = (",
         absl::StrJoin(arch_have, ", "), "), this trainer has (", absl::StrJoin(arch_want, ", "),
-        ")"));
+        "); start the learner with the checkpoint's --layer_norm, --value_heads and "
+        "--separate_optimizers"));
   }
   Model fresh = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
   torch::serialize::InputArchive actor;

@@ -13,6 +13,8 @@ import unittest
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+import launch  # noqa: E402
 SMALL = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--batch-steps", "1024", "--quiet"]
 
 
@@ -46,6 +48,34 @@ class LauncherErrorsTest(unittest.TestCase):
             lines = [l for l in r.stderr.splitlines() if l.strip()]
             self.assertEqual(len(lines), 1, r.stderr)
             self.assertIn(f"127.0.0.1:{port}", lines[0])
+
+
+class LauncherDefaultsTest(unittest.TestCase):
+    def test_defaults_are_the_ablation_winners(self):
+        args = launch.parse_args([])
+        self.assertEqual((args.sync, args.batch_steps, args.unroll_length, args.separate_optimizers),
+                         (True, 1024, 16, True))
+        self.assertEqual(launch.sync_unrolls(args), 1)
+        flags = launch.learner_option_flags(args)
+        self.assertIn("--synchronous=true", flags)
+        self.assertIn("--separate_optimizers=true", flags)
+        old = launch.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
+                                 "--unroll-length", "64"])
+        self.assertEqual(launch.sync_unrolls(old), 0)
+        self.assertEqual(launch.learner_option_flags(old), ["--separate_optimizers=false"])
+
+    def test_a_run_from_before_the_defaults_changed_resumes_as_it_ran(self):
+        with tempfile.TemporaryDirectory() as run_dir:
+            os.mkdir(os.path.join(run_dir, "checkpoints"))
+            for recorded in ({}, {"separate_optimizers": None}):
+                with open(os.path.join(run_dir, "config.json"), "w") as f:
+                    json.dump({"batch_steps": 8192, "unroll_length": 64, **recorded}, f)
+                args = launch.parse_args(["--resume", run_dir])
+                self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (False, False, 8192))
+            with open(os.path.join(run_dir, "config.json"), "w") as f:
+                json.dump({"batch_steps": 2048, "unroll_length": 16, "sync": True, "separate_optimizers": True}, f)
+            args = launch.parse_args(["--resume", run_dir])
+            self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (True, True, 2048))
 
 
 class LauncherRunTest(unittest.TestCase):

@@ -74,6 +74,12 @@ PRESETS = {
 }
 
 
+# Presets write to results/<preset>-<edition>: the learner's defaults changed
+# with edition v2 (docs/benchmarks.md, "Sample efficiency against the
+# reference MAPPO"), and results/<preset> holds the v1 runs (docs/results.md).
+PRESET_EDITION = "v2"
+
+
 class ExperimentError(Exception):
     """A one-line, user-facing error."""
 
@@ -308,7 +314,8 @@ def main(argv):
     what.add_argument("--preset", choices=sorted(PRESETS), help="a built-in grid")
     what.add_argument("--grid", metavar="FILE", help="a JSON grid (docs/experiments.md)")
     what.add_argument("--report", metavar="DIR", help="only (re)write the tables and plots of DIR")
-    p.add_argument("--out", default="", help="results folder (default: results/<preset or grid name>)")
+    p.add_argument("--out", default="",
+                   help=f"results folder (default: results/<preset>-{PRESET_EDITION} or results/<grid name>)")
     p.add_argument("--jobs", type=launch.positive_int, default=0,
                    help=f"runs at once (default: cores/2 = {default_jobs()})")
     args = p.parse_args(argv)
@@ -325,7 +332,8 @@ def main(argv):
                         "entries": PRESETS[args.preset]["entries"]}
             else:
                 grid = load_grid(args.grid)
-            out = os.path.abspath(args.out or os.path.join(ROOT, "results", grid["name"]))
+            default_out = f"{args.preset}-{PRESET_EDITION}" if args.preset else grid["name"]
+            out = os.path.abspath(args.out or os.path.join(ROOT, "results", default_out))
         cells = expand(grid["entries"], args.grid or args.preset or "grid.json")
         check_flags(cells)
         os.makedirs(out, exist_ok=True)

@@ -51,8 +51,6 @@ LEARNER_OPTIONS = [
     ("--objective", "objective", dict(choices=["behaviour", "decoupled"],
                                       help="PPO clip against the behaviour policy or a recomputed proximal one")),
     ("--layer-norm", "layer_norm", dict(type=boolean, metavar="BOOL", help="LayerNorm on input and hidden layers")),
-    ("--separate-optimizers", "separate_optimizers", dict(type=boolean, metavar="BOOL",
-                                                          help="one Adam and grad clip each for actor and critic")),
     ("--value-heads", "value_heads", dict(type=int, choices=[1, 2], help="2: extrinsic + intrinsic heads; 1: one")),
     ("--critic-input", "critic_input", dict(choices=["state", "joint_obs"], help="centralised critic's input")),
     ("--time-limit", "time_limit", dict(choices=["bootstrap", "terminal"], help="the step limit in the returns")),
@@ -66,6 +64,12 @@ LEARNER_OPTIONS = [
     ("--max-policy-lag", "max_policy_lag", dict(type=int, help="drop unrolls older than this many versions")),
     ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of the learner")),
 ]
+
+
+# Settings whose ./imca train default changed in the learner-efficiency work
+# (docs/benchmarks.md, "Sample efficiency against the reference MAPPO"),
+# with the value a run that did not record them ran with.
+RECORDED_SINCE_DEFAULTS_V2 = {"sync": False, "separate_optimizers": False}
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -91,9 +95,9 @@ def parse_args(argv):
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--actors", type=positive_int, default=2)
     p.add_argument("--envs-per-actor", type=positive_int, default=32)
-    p.add_argument("--unroll-length", type=positive_int, default=64)
+    p.add_argument("--unroll-length", type=positive_int, default=16)
     p.add_argument("--steps", type=positive_int, default=2_000_000, help="budget in joint env steps")
-    p.add_argument("--batch-steps", type=positive_int, default=8192, help="joint env steps per PPO iteration")
+    p.add_argument("--batch-steps", type=positive_int, default=1024, help="joint env steps per PPO iteration")
     p.add_argument("--max-batch-mb", type=positive_int, default=8192,
                    help="learner's cap on an iteration's feature memory (docs/learner.md)")
     p.add_argument("--lr", type=float, default=5e-4)
@@ -101,7 +105,9 @@ def parse_args(argv):
     p.add_argument("--intrinsic-coef", type=float, default=1.0)
     for flag, _, keywords in LEARNER_OPTIONS:
         p.add_argument(flag, default=None, **keywords)
-    p.add_argument("--sync", type=boolean, default=False, metavar="BOOL",
+    p.add_argument("--separate-optimizers", type=boolean, default=True, metavar="BOOL",
+                   help="one Adam and grad clip each for actor and critic (false: one over both)")
+    p.add_argument("--sync", type=boolean, default=True, metavar="BOOL",
                    help="synchronous collection: every iteration trains on the policy it starts from; "
                         "--batch-steps must be a multiple of actors x envs x unroll length")
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
@@ -117,7 +123,11 @@ def parse_args(argv):
             p.error(f"argument --resume: '{args.resume}' holds no run (config.json and checkpoints/)")
         with open(config_path) as f:
             saved = json.load(f)
-        for key, value in saved.items():
+        # A run from before a default changed did not record the setting (or
+        # recorded None: the binary's default then); it resumes as it ran.
+        for key, value in {**RECORDED_SINCE_DEFAULTS_V2, **saved}.items():
+            if value is None and key in RECORDED_SINCE_DEFAULTS_V2:
+                value = RECORDED_SINCE_DEFAULTS_V2[key]
             if key not in ("steps", "out", "resume", "reward_port", "learner_port") and hasattr(args, key):
                 setattr(args, key, value)
         args.out = args.resume
@@ -147,6 +157,7 @@ def learner_option_flags(args):
         value = getattr(args, flag[2:].replace("-", "_"))
         if value is not None:
             flags.append(f"--{name}={str(value).lower() if isinstance(value, bool) else value}")
+    flags.append(f"--separate_optimizers={str(args.separate_optimizers).lower()}")
     if args.sync:
         flags.append("--synchronous=true")
     return flags
