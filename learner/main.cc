@@ -66,6 +66,8 @@ ABSL_FLAG(int, queue_capacity, kDefaults.queue_capacity,
 ABSL_FLAG(int, checkpoint_every, kDefaults.checkpoint_every, "iterations between checkpoints");
 ABSL_FLAG(uint64_t, seed, kDefaults.ppo.seed, "seed of network initialisation and minibatch shuffling");
 ABSL_FLAG(int, threads, kDefaults.ppo.threads, "LibTorch intra-op threads");
+ABSL_FLAG(bool, concurrent_critic, kDefaults.ppo.concurrent_critic,
+          "run each minibatch's critic pass on a second thread, concurrently with the actor's (same result)");
 ABSL_FLAG(int64_t, max_batch_mb, 8192,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(double, linger_seconds, 2,
@@ -122,6 +124,7 @@ int main(int argc, char** argv) {
   config.synchronous = absl::GetFlag(FLAGS_synchronous);
   config.ppo.seed = absl::GetFlag(FLAGS_seed);
   config.ppo.threads = absl::GetFlag(FLAGS_threads);
+  config.ppo.concurrent_critic = absl::GetFlag(FLAGS_concurrent_critic);
   config.gamma = absl::GetFlag(FLAGS_gamma);
   config.gamma_int = absl::GetFlag(FLAGS_gamma_int);
   config.lambda = absl::GetFlag(FLAGS_lambda);

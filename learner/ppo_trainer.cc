@@ -8,16 +8,21 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <exception>
+#include <functional>
 #include <limits>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
 #include <ATen/CPUGeneratorImpl.h>
 #include <torch/torch.h>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "absl/synchronization/mutex.h"
 #include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "learner/lap.h"
@@ -337,6 +342,73 @@ absl::Status SyncFile(const std::string& path) {
   return absl::OkStatus();
 }
 
+// One thread that runs one task at a time for its owner: Start() hands it a
+// task, Wait() waits for it to end and returns what it threw, Join() also
+// rethrows that. Not thread-safe: one owner thread calls Start and Wait or
+// Join alternately, and must Wait before anything the task uses goes away.
+class SideThread {
+ public:
+  explicit SideThread(int torch_threads)
+      : thread_([this, torch_threads] {
+          // OpenMP's thread count is per thread: without this the side
+          // thread's ops would use every core.
+          torch::set_num_threads(torch_threads);
+          Loop();
+        }) {}
+  ~SideThread() {
+    {
+      absl::MutexLock lock(&mu_);
+      stop_ = true;
+    }
+    thread_.join();
+  }
+
+  void Start(std::function<void()> task) {
+    absl::MutexLock lock(&mu_);
+    task_ = std::move(task);
+  }
+
+  std::exception_ptr Wait() {
+    absl::MutexLock lock(&mu_);
+    mu_.Await(absl::Condition(this, &SideThread::Idle));
+    return std::exchange(error_, nullptr);
+  }
+
+  void Join() {
+    if (std::exception_ptr error = Wait()) std::rethrow_exception(error);
+  }
+
+ private:
+  void Loop() {
+    while (true) {
+      std::function<void()> task;
+      {
+        absl::MutexLock lock(&mu_);
+        mu_.Await(absl::Condition(this, &SideThread::HasWork));
+        if (task_ == nullptr) return;  // Stopped, nothing left to run.
+        task = task_;
+      }
+      std::exception_ptr error;
+      try {
+        task();
+      } catch (...) {
+        error = std::current_exception();
+      }
+      absl::MutexLock lock(&mu_);
+      error_ = error;
+      task_ = nullptr;
+    }
+  }
+  bool Idle() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return task_ == nullptr; }
+  bool HasWork() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return task_ != nullptr || stop_; }
+
+  absl::Mutex mu_;
+  std::function<void()> task_ ABSL_GUARDED_BY(mu_);  // Set until it has run.
+  std::exception_ptr error_ ABSL_GUARDED_BY(mu_);
+  bool stop_ ABSL_GUARDED_BY(mu_) = false;
+  std::thread thread_;  // Last: starts after the members it uses exist.
+};
+
 // Mean of (w - 1) - log w over samples, w = exp(log_probs - behaviour).
 double BehaviourKl(const torch::Tensor& log_probs, const torch::Tensor& behaviour_log_probs) {
   const torch::Tensor log_w = log_probs - behaviour_log_probs;
@@ -367,6 +439,7 @@ struct PpoTrainer::Impl {
     torch::set_num_threads(config.threads);
     torch::manual_seed(config.seed);  // Makes the initial weights a function of the seed.
     model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
+    if (config.concurrent_critic) critic_thread_ = std::make_unique<SideThread>(config.threads);
   }
 
   absl::Status ValidateBatch(const PpoBatch& batch) const;
@@ -385,6 +458,7 @@ struct PpoTrainer::Impl {
   RunningMeanVar ext_norm_;  // Returns of the extrinsic value head.
   RunningMeanVar int_norm_;  // Returns of the intrinsic value head.
   at::Generator generator_;  // Minibatch shuffling only; saved in checkpoints.
+  std::unique_ptr<SideThread> critic_thread_;  // With config.concurrent_critic.
 };
 
 absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
@@ -495,42 +569,71 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
                                    ? data.start_log_probs.index_select(0, indices)
                                    : behaviour;
 
+  // Actor and critic share no parameters, so each backward pass of its own
+  // loss gives its parameters exactly the gradient of the summed loss
+  // (policy + value_coef * value - entropy_coef * entropy), and the two can
+  // run at once.
+  model_.ZeroGrad();
+  torch::Tensor value_loss;
+  const auto critic_forward = [&] {
+    const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
+    const torch::Tensor targets = data.value_targets.index_select(0, indices);
+    const auto error_loss = [&](const torch::Tensor& predictions) {
+      return config_.huber_delta > 0
+                 ? torch::huber_loss(predictions, targets, at::Reduction::None, config_.huber_delta)
+                 : torch::mse_loss(predictions, targets, at::Reduction::None);
+    };
+    torch::Tensor per_sample = error_loss(values);
+    if (config_.value_clip > 0) {
+      const torch::Tensor start = data.start_values.index_select(0, indices);
+      per_sample = torch::max(per_sample, error_loss(start + torch::clamp(values - start, -config_.value_clip,
+                                                                          config_.value_clip)));
+    }
+    value_loss = per_sample.mean(/*dim=*/0).sum();  // Mean per head, summed over the heads.
+  };
+  const auto critic_backward = [&] { (config_.value_coef * value_loss).backward(); };
+  struct WaitOnExit {  // If the actor's passes throw, the task's locals must outlive it.
+    SideThread* thread;
+    ~WaitOnExit() {
+      if (thread != nullptr) thread->Wait();
+    }
+  } wait_on_exit{critic_thread_.get()};
+  if (critic_thread_ != nullptr) {
+    critic_thread_->Start([&] {
+      critic_forward();
+      critic_backward();
+    });
+  }
+
   const torch::Tensor log_probs_all =
       torch::log_softmax(model_.actor->forward(data.obs.index_select(0, indices)), /*dim=*/1);
   const torch::Tensor log_probs = log_probs_all.gather(1, actions.unsqueeze(1)).squeeze(1);
   const torch::Tensor entropy = -(log_probs_all.exp() * log_probs_all).sum(1).mean();
   const torch::Tensor policy_loss =
       internal::DecoupledSurrogateLoss(log_probs, anchor, behaviour, advantages, config_.clip);
-  const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
-  const torch::Tensor targets = data.value_targets.index_select(0, indices);
-  const auto error_loss = [&](const torch::Tensor& predictions) {
-    return config_.huber_delta > 0
-               ? torch::huber_loss(predictions, targets, at::Reduction::None, config_.huber_delta)
-               : torch::mse_loss(predictions, targets, at::Reduction::None);
-  };
-  torch::Tensor per_sample = error_loss(values);
-  if (config_.value_clip > 0) {
-    const torch::Tensor start = data.start_values.index_select(0, indices);
-    per_sample = torch::max(
-        per_sample, error_loss(start + torch::clamp(values - start, -config_.value_clip, config_.value_clip)));
-  }
-  // Mean per head, summed over the heads.
-  const torch::Tensor value_loss = per_sample.mean(/*dim=*/0).sum();
-  const torch::Tensor loss =
-      policy_loss + config_.value_coef * value_loss - config_.entropy_coef * entropy;
-
-  const double loss_value = loss.item<double>();
-  if (!std::isfinite(loss_value)) {
-    return absl::InternalError(absl::StrCat(
-        "non-finite PPO loss ", loss_value, " (policy ", policy_loss.item<double>(), ", value ",
-        value_loss.item<double>(), ", entropy ", entropy.item<double>(), "); no step taken"));
-  }
-  // Actor and critic share no parameters, so one backward pass of the sum
-  // gives each optimiser's group exactly the gradient of its own loss.
+  if (critic_thread_ == nullptr) critic_forward();
+  // With the concurrent critic: the actor's passes on this thread, and the
+  // wait for the critic counts as backward.
   sums.seconds_forward += Lap(lap);
-  model_.ZeroGrad();
-  loss.backward();
+  (policy_loss - config_.entropy_coef * entropy).backward();
+  if (critic_thread_ != nullptr) {
+    critic_thread_->Join();
+  } else {
+    critic_backward();
+  }
   sums.seconds_backward += Lap(lap);
+
+  const double policy_value = policy_loss.item<double>();
+  const double value_value = value_loss.item<double>();
+  const double entropy_value = entropy.item<double>();
+  const double loss_value =
+      policy_value + config_.value_coef * value_value - config_.entropy_coef * entropy_value;
+  if (!std::isfinite(loss_value)) {
+    model_.ZeroGrad();
+    return absl::InternalError(absl::StrCat("non-finite PPO loss ", loss_value, " (policy ", policy_value,
+                                            ", value ", value_value, ", entropy ", entropy_value,
+                                            "); no step taken"));
+  }
   double grad_norm_sq = 0;  // Of all parameters together, whatever the grouping.
   for (const auto& group : model_.groups) {
     const double norm = torch::nn::utils::clip_grad_norm_(group, config_.max_grad_norm);
@@ -554,9 +657,9 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   }
   const torch::Tensor log_ratio = log_probs.detach() - anchor;
   const torch::Tensor ratio = log_ratio.exp();
-  sums.policy_loss += policy_loss.item<double>();
-  sums.value_loss += value_loss.item<double>();
-  sums.entropy += entropy.item<double>();
+  sums.policy_loss += policy_value;
+  sums.value_loss += value_value;
+  sums.entropy += entropy_value;
   sums.grad_norm += grad_norm;
   ++sums.updates;
   sums.clipped += ((ratio - 1.0).abs() > config_.clip).sum().item<int64_t>();

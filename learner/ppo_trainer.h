@@ -45,7 +45,12 @@ struct PpoConfig {
   int epochs = 4;
   int minibatches = 4;
   uint64_t seed = 1;
-  int threads = 1;             // LibTorch intra-op threads.
+  int threads = 1;             // LibTorch intra-op threads (of each pass below).
+  // Each minibatch's critic forward and backward pass runs on a second thread
+  // while the actor's run on the training thread. Actor and critic share no
+  // parameters, so the update is the same as one after the other; false: one
+  // thread does both.
+  bool concurrent_critic = true;
   PpoObjective objective = PpoObjective::kBehaviour;
   // LayerNorm on the input and after every hidden activation, in actor and
   // critic (marlbenchmark/on-policy's MLPBase with feature normalisation).

@@ -255,6 +255,30 @@ TEST(PpoTrainerTest, SameSeedSameWeights) {
   EXPECT_NE(AllWeights(a->ExportPolicy(0)), AllWeights(c->ExportPolicy(0)));
 }
 
+TEST(PpoTrainerTest, ConcurrentCriticGivesTheSameUpdateAsOneThread) {
+  for (const bool separate : {true, false}) {
+    PpoConfig config = SmallConfig();
+    config.learning_rate = 3e-3;
+    config.separate_optimizers = separate;
+    config.concurrent_critic = true;
+    auto concurrent = MakeTrainer(config);
+    config.concurrent_critic = false;
+    auto sequential = MakeTrainer(config);
+    ASSERT_TRUE(concurrent && sequential);
+    std::mt19937 rng_a(5), rng_b(5);
+    for (int i = 0; i < 4; ++i) {
+      const auto a = concurrent->Train(BanditBatch(*concurrent, 64, rng_a));
+      const auto b = sequential->Train(BanditBatch(*sequential, 64, rng_b));
+      ASSERT_TRUE(a.ok() && b.ok());
+      EXPECT_EQ(a->value_loss, b->value_loss) << "separate " << separate << ", iteration " << i;
+      EXPECT_EQ(a->grad_norm, b->grad_norm) << "separate " << separate << ", iteration " << i;
+    }
+    EXPECT_EQ(AllWeights(concurrent->ExportPolicy(0)), AllWeights(sequential->ExportPolicy(0)))
+        << "separate " << separate;
+    EXPECT_EQ(ContextValues(*concurrent), ContextValues(*sequential)) << "separate " << separate;
+  }
+}
+
 TEST(PpoTrainerTest, ValuesApproachConstantReturns) {
   auto trainer = MakeTrainer(SmallConfig());
   ASSERT_NE(trainer, nullptr);

@@ -19,6 +19,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
@@ -148,27 +149,47 @@ void PrintPhases(const std::string& metrics_path, const std::string& prefix) {
   std::printf("%s_ms_busy %.2f\n", prefix.c_str(), total);
 }
 
-double BenchLearner(const env::Scenario& scenario, int rounds, int threads) {
+// The learner's shape of work: joint steps per iteration, unrolls of T x E.
+struct LearnerShape {
+  const char* name;  // "" for ./imca train's defaults, else a suffix.
+  int64_t batch_steps;
+  int unroll_length;
+  int envs;
+  bool separate_optimizers;
+  bool concurrent_critic;
+};
+// ./imca train's defaults, and those before the learner ablation and the
+// concurrent critic (docs/benchmarks.md, "Sample efficiency against the
+// reference MAPPO").
+constexpr LearnerShape kDefaultShape{"", 1024, 16, 32, true, true};
+constexpr LearnerShape kV1Shape{"_v1", 8192, 64, 32, false, false};
+
+double BenchLearner(const env::Scenario& scenario, int rounds, int threads, const LearnerShape& shape) {
   learner::LearnerConfig config;
-  config.batch_steps = 8192;
+  config.batch_steps = shape.batch_steps;
   config.run_dir = "/tmp/imca_bench_speed_learner_" + std::to_string(getpid());
   config.checkpoint_every = 0;
   config.ppo.threads = threads;
+  config.ppo.separate_optimizers = shape.separate_optimizers;
+  config.ppo.concurrent_critic = shape.concurrent_critic;
   config.max_policy_lag = 1 << 30;
   config.queue_capacity = 8;
   auto learner = learner::Learner::Create(&scenario, config);
   if (!learner.ok()) return 0;
   learner::Learner* l = learner->get();
   std::vector<v1::Unroll> unrolls;
-  for (int i = 0; i < 8; ++i) unrolls.push_back(testing::RandomUnroll(scenario, 64, 32, 200 + i));
+  for (int i = 0; i < 8; ++i) {
+    unrolls.push_back(testing::RandomUnroll(scenario, shape.unroll_length, shape.envs, 200 + i));
+  }
   std::thread trainer([l] { l->Run().ok(); });
   std::vector<double> rates;
   int64_t pushed = 0;
+  // Rounds of at least 32k steps, so that small iterations are timed over many.
+  const int64_t per_round = std::max<int64_t>(4, 32768 / shape.batch_steps) * shape.batch_steps;
   for (int r = 0; r < rounds + 1; ++r) {
     const int64_t before = l->Status().env_steps();
     const auto start = Clock::now();
-    // Four iterations of 8192 steps per round.
-    while (l->Status().env_steps() < before + 4 * 8192) {
+    while (l->Status().env_steps() < before + per_round) {
       v1::Unroll u = unrolls[pushed++ % unrolls.size()];
       u.set_policy_version(l->Status().policy_version());
       l->Push(std::move(u)).ok();
@@ -177,7 +198,8 @@ double BenchLearner(const env::Scenario& scenario, int rounds, int threads) {
   }
   l->Stop();
   trainer.join();
-  PrintPhases(config.run_dir + "/metrics.csv", "learner_" + std::to_string(threads) + "thread");
+  PrintPhases(config.run_dir + "/metrics.csv",
+              absl::StrCat("learner", shape.name, "_", threads, "thread"));
   std::filesystem::remove_all(config.run_dir);
   return Median(rates);
 }
@@ -194,10 +216,13 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
   std::printf("score_transitions_per_sec %.0f\n", BenchScore(**scenario, rounds));
   std::fflush(stdout);
-  std::printf("learner_steps_per_sec_1thread %.0f\n", BenchLearner(**scenario, rounds, 1));
-  std::fflush(stdout);
-  std::printf("learner_steps_per_sec_2threads %.0f\n", BenchLearner(**scenario, rounds, 2));
-  std::fflush(stdout);
+  for (const LearnerShape& shape : {kDefaultShape, kV1Shape}) {
+    for (int threads : {1, 2}) {
+      std::printf("learner%s_steps_per_sec_%dthread%s %.0f\n", shape.name, threads, threads > 1 ? "s" : "",
+                  BenchLearner(**scenario, rounds, threads, shape));
+      std::fflush(stdout);
+    }
+  }
   BenchCountTable(20'000'000);
   return 0;
 }

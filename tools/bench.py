@@ -30,6 +30,11 @@ sys.path.insert(0, os.path.join(ROOT, "tools"))
 import launch  # noqa: E402  (the metrics reader and success thresholds of ./imca train)
 
 
+# ./imca train's defaults before the learner ablation and the concurrent critic (docs/benchmarks.md).
+V1_FLAGS = ["--sync", "false", "--batch-steps", "8192", "--unroll-length", "64", "--separate-optimizers", "false",
+            "--concurrent-critic", "false"]
+
+
 def finished_run(out, budget):
     """(summary, rows) of a run folder that reached `budget` uninterrupted, else None."""
     summary = launch.finished_summary(out, budget)
@@ -65,16 +70,19 @@ def speed(args, base):
                        env=dict(os.environ, OMP_WAIT_POLICY="passive"))
     print(r.stdout, end="")
     figures = dict(line.split() for line in r.stdout.splitlines() if line.strip())
-    print("== end-to-end training (./imca train defaults) ==", flush=True)
-    rates = []
-    for i in range(args.repeats):
-        _, rows = train(os.path.join(base, f"e2e-{i}"), ["--steps", str(args.steps)])
-        rates.append(steady_rate(rows))
-        print(f"end_to_end_steps_per_sec run {i}: {rates[-1]:.0f}", flush=True)
-    e2e = statistics.median(rates)
-    learner = float(figures["learner_steps_per_sec_1thread"])
-    print(f"end_to_end_steps_per_sec {e2e:.0f}")
-    print(f"ratio end_to_end / learner_only(1 thread) {e2e / learner:.2f}")
+    # ./imca train's defaults, then those before the learner ablation
+    # (docs/benchmarks.md), each against the learner-only ceiling of its shape.
+    for name, flags, suffix in [("./imca train defaults", [], ""), ("v1 defaults", V1_FLAGS, "_v1")]:
+        print(f"== end-to-end training ({name}{': ' + ' '.join(flags) if flags else ''}) ==", flush=True)
+        rates = []
+        for i in range(args.repeats):
+            _, rows = train(os.path.join(base, f"e2e{suffix}-{i}"), ["--steps", str(args.steps)] + flags)
+            rates.append(steady_rate(rows))
+            print(f"end_to_end{suffix}_steps_per_sec run {i}: {rates[-1]:.0f}", flush=True)
+        e2e = statistics.median(rates)
+        learner = float(figures[f"learner{suffix}_steps_per_sec_1thread"])
+        print(f"end_to_end{suffix}_steps_per_sec {e2e:.0f}")
+        print(f"ratio end_to_end{suffix} / learner{suffix}_only(1 thread) {e2e / learner:.2f}", flush=True)
 
 
 def env_bench(args, base):

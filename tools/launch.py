@@ -62,7 +62,9 @@ LEARNER_OPTIONS = [
     ("--epochs", "epochs", dict(type=positive_int, help="PPO epochs per iteration")),
     ("--minibatches", "minibatches", dict(type=positive_int, help="PPO minibatches per epoch")),
     ("--max-policy-lag", "max_policy_lag", dict(type=int, help="drop unrolls older than this many versions")),
-    ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of the learner")),
+    ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of each learner pass")),
+    ("--concurrent-critic", "concurrent_critic", dict(type=boolean, metavar="BOOL",
+                                                      help="critic passes on a second learner thread")),
 ]
 
 
