@@ -343,9 +343,9 @@ absl::Status SyncFile(const std::string& path) {
 }
 
 // One thread that runs one task at a time for its owner: Start() hands it a
-// task, Wait() waits for it to end and returns what it threw, Join() also
-// rethrows that. Not thread-safe: one owner thread calls Start and Wait or
-// Join alternately, and must Wait before anything the task uses goes away.
+// task (once the previous one has ended), Wait() waits for it to end and
+// returns what it threw, Join() also rethrows that. Meant for one owner
+// thread, which must Wait before anything the task uses goes away.
 class SideThread {
  public:
   explicit SideThread(int torch_threads)
@@ -363,30 +363,32 @@ class SideThread {
     thread_.join();
   }
 
-  void Start(std::function<void()> task) {
+  void Start(std::function<void()> task) ABSL_LOCKS_EXCLUDED(mu_) {
     absl::MutexLock lock(&mu_);
-    task_ = std::move(task);
+    mu_.Await(absl::Condition(this, &SideThread::Idle));
+    pending_ = std::move(task);
   }
 
-  std::exception_ptr Wait() {
+  std::exception_ptr Wait() ABSL_LOCKS_EXCLUDED(mu_) {
     absl::MutexLock lock(&mu_);
     mu_.Await(absl::Condition(this, &SideThread::Idle));
     return std::exchange(error_, nullptr);
   }
 
-  void Join() {
+  void Join() ABSL_LOCKS_EXCLUDED(mu_) {
     if (std::exception_ptr error = Wait()) std::rethrow_exception(error);
   }
 
  private:
-  void Loop() {
+  void Loop() ABSL_LOCKS_EXCLUDED(mu_) {
     while (true) {
       std::function<void()> task;
       {
         absl::MutexLock lock(&mu_);
         mu_.Await(absl::Condition(this, &SideThread::HasWork));
-        if (task_ == nullptr) return;  // Stopped, nothing left to run.
-        task = task_;
+        if (pending_ == nullptr) return;  // Stopped, nothing left to run.
+        task.swap(pending_);              // Swapping cannot throw.
+        running_ = true;
       }
       std::exception_ptr error;
       try {
@@ -396,14 +398,15 @@ class SideThread {
       }
       absl::MutexLock lock(&mu_);
       error_ = error;
-      task_ = nullptr;
+      running_ = false;
     }
   }
-  bool Idle() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return task_ == nullptr; }
-  bool HasWork() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return task_ != nullptr || stop_; }
+  bool Idle() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return pending_ == nullptr && !running_; }
+  bool HasWork() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return pending_ != nullptr || stop_; }
 
   absl::Mutex mu_;
-  std::function<void()> task_ ABSL_GUARDED_BY(mu_);  // Set until it has run.
+  std::function<void()> pending_ ABSL_GUARDED_BY(mu_);  // Started, not yet picked up.
+  bool running_ ABSL_GUARDED_BY(mu_) = false;
   std::exception_ptr error_ ABSL_GUARDED_BY(mu_);
   bool stop_ ABSL_GUARDED_BY(mu_) = false;
   std::thread thread_;  // Last: starts after the members it uses exist.
