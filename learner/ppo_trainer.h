@@ -56,9 +56,10 @@ struct PpoConfig {
   // critic (marlbenchmark/on-policy's MLPBase with feature normalisation).
   bool layer_norm = false;
   // Two Adam optimisers (actor, critic), each with its own grad-norm clip at
-  // max_grad_norm, as on-policy's R_MAPPO; false: one over both, one clip
-  // (the default before docs/benchmarks.md's learner ablation).
-  bool separate_optimizers = true;
+  // max_grad_norm, as on-policy's R_MAPPO; false: one over both, one clip.
+  // Which is better depends on the task (docs/benchmarks.md); ./imca train
+  // picks per scenario.
+  bool separate_optimizers = false;
   // Critic outputs: 2 = extrinsic and intrinsic heads (returns_int trained),
   // 1 = one head on returns_ext (the learner folds the bonus into the reward).
   int value_heads = 2;

@@ -534,7 +534,7 @@ TEST_P(PpoVariantTest, LearnsTheBanditAndTheValues) {
 INSTANTIATE_TEST_SUITE_P(
     Options, PpoVariantTest,
     ::testing::Values(Variant{"LayerNorm", [](PpoConfig& c) { c.layer_norm = true; }},
-                      Variant{"OneOptimizer", [](PpoConfig& c) { c.separate_optimizers = false; }},
+                      Variant{"SeparateOptimizers", [](PpoConfig& c) { c.separate_optimizers = true; }},
                       Variant{"OneValueHead", [](PpoConfig& c) { c.value_heads = 1; }},
                       Variant{"Decoupled", [](PpoConfig& c) { c.objective = PpoObjective::kDecoupled; }},
                       Variant{"ValueClipHuber",

@@ -59,6 +59,9 @@ class LauncherDefaultsTest(unittest.TestCase):
         flags = launch.learner_option_flags(args)
         self.assertIn("--synchronous=true", flags)
         self.assertIn("--separate_optimizers=true", flags)
+        self.assertFalse(launch.parse_args(["--scenario", "predator_prey"]).separate_optimizers)
+        self.assertTrue(launch.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])
+                        .separate_optimizers)
         old = launch.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
                                  "--unroll-length", "64"])
         self.assertEqual(launch.sync_unrolls(old), 0)
