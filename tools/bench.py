@@ -30,9 +30,9 @@ sys.path.insert(0, os.path.join(ROOT, "tools"))
 import launch  # noqa: E402  (the metrics reader and success thresholds of ./imca train)
 
 
-# ./imca train's defaults before the learner ablation and the concurrent critic (docs/benchmarks.md).
-V1_FLAGS = ["--sync", "false", "--batch-steps", "8192", "--unroll-length", "64", "--separate-optimizers", "false",
-            "--concurrent-critic", "false"]
+# ./imca train's defaults before the learner ablation, and before the concurrent critic.
+V1_FLAGS = [word for key, value in launch.V1_DEFAULTS.items()
+            for word in (f"--{key.replace('_', '-')}", str(value).lower())] + ["--concurrent-critic", "false"]
 
 
 def finished_run(out, budget):

@@ -68,10 +68,10 @@ LEARNER_OPTIONS = [
 ]
 
 
-# Settings whose ./imca train default changed in the learner-efficiency work
-# (docs/benchmarks.md, "Sample efficiency against the reference MAPPO"),
-# with the value a run that did not record them ran with.
-RECORDED_SINCE_DEFAULTS_V2 = {"sync": False, "separate_optimizers": False}
+# ./imca train's defaults before the learner ablation (docs/benchmarks.md,
+# "Sample efficiency against the reference MAPPO"); a run folder that did not
+# record one of these settings ran with it.
+V1_DEFAULTS = {"sync": False, "batch_steps": 8192, "unroll_length": 64, "separate_optimizers": False}
 # --separate-optimizers when not given, per scenario. Two optimisers (one
 # Adam and grad clip each for actor and critic) cut coop_nav's env steps to
 # 90% (0.38M against 0.47M with shared credit) but leave 2 of 5 seeds of
@@ -132,11 +132,12 @@ def parse_args(argv):
             p.error(f"argument --resume: '{args.resume}' holds no run (config.json and checkpoints/)")
         with open(config_path) as f:
             saved = json.load(f)
-        # A run from before a default changed did not record the setting (or
-        # recorded None: the binary's default then); it resumes as it ran.
-        for key, value in {**RECORDED_SINCE_DEFAULTS_V2, **saved}.items():
-            if value is None and key in RECORDED_SINCE_DEFAULTS_V2:
-                value = RECORDED_SINCE_DEFAULTS_V2[key]
+        # A run from before the defaults changed did not record the setting
+        # (or recorded None: the binary's default then); it resumes as it ran.
+        for key, old in V1_DEFAULTS.items():
+            if saved.get(key) is None:
+                saved[key] = old
+        for key, value in saved.items():
             if key not in ("steps", "out", "resume", "reward_port", "learner_port") and hasattr(args, key):
                 setattr(args, key, value)
         args.out = args.resume
