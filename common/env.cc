@@ -61,33 +61,34 @@ class CoopNav final : public Scenario {
   uint32_t all_collected_;
 };
 
-// Doors opened by switches. hold = 0 (multi_room): a door is open exactly
-// while an agent stands on one of its switches; z bit d = door d open.
-// hold > 0 (EDTI's pass, secret_room): a door stays open for `hold` steps
-// after its switch is left; z holds a 4-bit timer per door (hold + 1 while a
-// switch is held, then counting down; open while > 0).
-// The door state in z is computed after each step's moves and governs the
-// next step's moves.
+// Doors opened by switches, with EDTI's door-open interval `doi` as
+// pass_environment.py applies it after each step's moves: an open door whose
+// count has reached doi closes, else its count goes up by one; then a closed
+// door opens (count 0) if an agent stands on one of its switches. So a door
+// is passable for exactly doi + 1 moves after it opens, and doi = 0 means
+// open during a move iff a switch was held after the previous one. Episodes
+// start with every door closed. z holds one field of BitsFor(doi) bits per
+// door: 0 closed, count + 1 while open.
 class DoorScenario : public Scenario {
  public:
-  DoorScenario(GridMap map, const ScenarioConfig& config, int n, int num_actions, int limit,
-               float success, float penalty, int hold, bool needs_treasure)
-      : Scenario(std::move(map), config, n, 0, num_actions, limit, success, penalty),
-        hold_(hold),
+  static constexpr int kMaxDoorTimer = 30;
+
+  DoorScenario(GridMap map, const ScenarioConfig& config, int n, int num_actions, int limit, float success,
+               float penalty, int default_timer, bool needs_treasure, bool share_cells)
+      : Scenario(std::move(map), config, n, 0, num_actions, limit, success, penalty, share_cells),
+        timer_(config.door_timer >= 0 ? config.door_timer : default_timer),
+        bits_(BitsFor(timer_)),
         needs_treasure_(needs_treasure),
         goal_room_(map_.GoalRoom()) {}
 
-  int num_object_bits() const override { return map_.num_doors() * (hold_ > 0 ? 4 : 1); }
-  bool DoorOpen(const int32_t* state, int door) const override {
-    const uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
-    return hold_ > 0 ? ((z >> (4 * door)) & 15u) > 0 : ((z >> door) & 1u);
-  }
+  int door_timer() const override { return timer_; }
+  int num_object_bits() const override { return map_.num_doors() * bits_; }
+  bool DoorOpen(const int32_t* state, int door) const override { return Field(state, door) > 0; }
 
   void Reset(Rng& rng, int32_t* state) const override {
     state[kObjectsIndex] = 0;
     SpawnAgents(state + 1, rng);
     state[step_index()] = 0;
-    UpdateDoors(state);
   }
 
   StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
@@ -103,22 +104,30 @@ class DoorScenario : public Scenario {
   }
 
  private:
+  // Bits holding 0..doi+1.
+  static int BitsFor(int timer) {
+    int bits = 1;
+    while ((1 << bits) < timer + 2) ++bits;
+    return bits;
+  }
+  uint32_t Field(const int32_t* state, int door) const {
+    return (static_cast<uint32_t>(state[kObjectsIndex]) >> (bits_ * door)) & ((1u << bits_) - 1);
+  }
+
   void UpdateDoors(int32_t* state) const {
     uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
+    const uint32_t mask = (1u << bits_) - 1;
     for (int d = 0; d < map_.num_doors(); ++d) {
-      const bool held = AnyAgentOn(state + 1, num_agents_, map_.switches(d));
-      if (hold_ == 0) {
-        z = held ? z | (1u << d) : z & ~(1u << d);
-      } else {
-        const uint32_t timer = (z >> (4 * d)) & 15u;
-        const uint32_t next = held ? hold_ + 1 : (timer > 0 ? timer - 1 : 0);
-        z = (z & ~(15u << (4 * d))) | (next << (4 * d));
-      }
+      uint32_t field = (z >> (bits_ * d)) & mask;  // 0 closed, count + 1 open.
+      if (field > 0) field = field - 1 >= static_cast<uint32_t>(timer_) ? 0 : field + 1;
+      if (field == 0 && AnyAgentOn(state + 1, num_agents_, map_.switches(d))) field = 1;
+      z = (z & ~(mask << (bits_ * d))) | (field << (bits_ * d));
     }
     state[kObjectsIndex] = static_cast<int32_t>(z);
   }
 
-  const uint32_t hold_;
+  const int timer_;
+  const int bits_;
   const bool needs_treasure_;
   const std::vector<bool> goal_room_;
 };
@@ -126,21 +135,23 @@ class DoorScenario : public Scenario {
 class MultiRoom final : public DoorScenario {
  public:
   MultiRoom(GridMap map, const ScenarioConfig& config, int n)
-      : DoorScenario(std::move(map), config, n, 5, 300, 50.0f, 0.1f, 0, true) {}
+      : DoorScenario(std::move(map), config, n, 5, 300, 50.0f, 0.1f, 0, true, false) {}
   absl::string_view name() const override { return "multi_room"; }
 };
 
+// EDTI's Pass and ThreePass (BASELINES.md 4.1, 4.2): 4 actions, agents move
+// independently and may share a cell, doi 8 (the default of EDTI's code).
 class Pass final : public DoorScenario {
  public:
   Pass(GridMap map, const ScenarioConfig& config, int n)
-      : DoorScenario(std::move(map), config, n, 4, 300, 1000.0f, 0.0f, 8, false) {}
+      : DoorScenario(std::move(map), config, n, 4, 300, 1000.0f, 0.0f, 8, false, true) {}
   absl::string_view name() const override { return "pass"; }
 };
 
 class SecretRoom final : public DoorScenario {
  public:
   SecretRoom(GridMap map, const ScenarioConfig& config, int n)
-      : DoorScenario(std::move(map), config, n, 4, 300, 1000.0f, 0.0f, 8, false) {}
+      : DoorScenario(std::move(map), config, n, 4, 300, 1000.0f, 0.0f, 8, false, true) {}
   absl::string_view name() const override { return "secret_room"; }
 };
 
@@ -305,7 +316,7 @@ const std::map<std::string, ScenarioSpec>& Specs() {
 
 Scenario::Scenario(GridMap map, const ScenarioConfig& config, int num_agents, int num_npcs,
                    int num_actions, int default_step_limit, float default_success_reward,
-                   float default_step_penalty)
+                   float default_step_penalty, bool agents_share_cells)
     : map_(std::move(map)),
       num_agents_(num_agents),
       num_npcs_(num_npcs),
@@ -315,7 +326,17 @@ Scenario::Scenario(GridMap map, const ScenarioConfig& config, int num_agents, in
       success_reward_(std::isnan(config.success_reward) ? default_success_reward
                                                         : static_cast<float>(config.success_reward)),
       step_penalty_(std::isnan(config.step_penalty) ? default_step_penalty
-                                                    : static_cast<float>(config.step_penalty)) {}
+                                                    : static_cast<float>(config.step_penalty)),
+      agents_share_cells_(agents_share_cells) {
+  if (!agents_share_cells_) {
+    spawn_pool_ = map_.random_spawns();
+    return;
+  }
+  const std::vector<bool> rooms = map_.RoomOf(map_.random_spawns());
+  for (int cell = 0; cell < map_.num_cells(); ++cell) {
+    if (rooms[cell]) spawn_pool_.push_back(cell);
+  }
+}
 
 uint64_t Scenario::fingerprint() const {
   uint64_t h = 0x8a5cd789635d2dffULL;
@@ -324,7 +345,10 @@ uint64_t Scenario::fingerprint() const {
     h = Rng::SplitMix64(s);
   };
   for (char c : name()) mix(static_cast<uint8_t>(c));
-  for (int v : {map_.width(), map_.height(), num_agents_, num_npcs_, num_actions_, step_limit_, view_radius_}) mix(v);
+  for (int v : {map_.width(), map_.height(), num_agents_, num_npcs_, num_actions_, step_limit_, view_radius_,
+                door_timer() + 1, static_cast<int>(agents_share_cells_)}) {
+    mix(v);
+  }
   uint32_t bits;
   std::memcpy(&bits, &success_reward_, 4);
   mix(bits);
@@ -339,6 +363,7 @@ uint64_t Scenario::fingerprint() const {
     for (int32_t cell : *cells) mix(cell);
   }
   for (int a = 0; a < num_agents_; ++a) mix(static_cast<uint64_t>(map_.FixedSpawn(a) + 1));
+  for (int32_t cell : spawn_pool_) mix(cell);
   return h == 0 ? 1 : h;
 }
 
@@ -368,9 +393,17 @@ void Scenario::MoveAgents(const int32_t* state, int32_t* cells, int count, const
     if (row < 0 || row >= map_.height() || col < 0 || col >= width) continue;
     const int cell = row * width + col;
     if (!Enterable(state, cell)) continue;
+    if (agents_share_cells_) {
+      target[a] = cell;
+      continue;
+    }
     bool taken = false;
     for (int j = 0; j < num_others; ++j) taken |= others[j] == cell;
     if (!taken) target[a] = cell;
+  }
+  if (agents_share_cells_) {
+    for (int a = 0; a < count; ++a) cells[a] = target[a];
+    return;
   }
   bool contested = false;
   for (int a = 0; a < count && !contested; ++a) {
@@ -423,13 +456,17 @@ StepOutcome Scenario::Finish(int t, bool success, float* rewards) const {
 }
 
 void Scenario::SpawnAgents(int32_t* cells, Rng& rng) const {
-  const auto& pool = map_.random_spawns();
+  const auto& pool = spawn_pool_;
   int32_t taken[kMaxAgents];
   int num_taken = 0;
   for (int a = 0; a < num_agents_; ++a) {
     const int fixed = map_.FixedSpawn(a);
     if (fixed >= 0) {
       cells[a] = fixed;
+      continue;
+    }
+    if (agents_share_cells_) {
+      cells[a] = pool[rng.Uniform(static_cast<uint32_t>(pool.size()))];
       continue;
     }
     // Rejection sampling over the pool; MakeScenario guarantees enough cells.
@@ -459,7 +496,8 @@ absl::Status Scenario::ValidateState(const int32_t* state) const {
       return absl::InvalidArgumentError(
           absl::StrCat("cell of ", who, " is ", cell, ", not a floor cell of the map"));
     }
-    for (int j = 0; j < i; ++j) {
+    // Agents that may share a cell may share it; entities never.
+    for (int j = 0; j < i && !(agents_share_cells_ && i < num_agents_); ++j) {
       if (state[1 + j] == cell) {
         return absl::InvalidArgumentError(absl::StrCat("cell of ", who, " is ", cell, ", already taken"));
       }
@@ -484,10 +522,14 @@ std::string Scenario::Render(const int32_t* state) const {
       for (size_t k = 0; k < treasures.size(); ++k) {
         if (treasures[k] == cell && !TreasureCollected(state, static_cast<int>(k))) c = 'T';
       }
-      if (map_.SwitchAt(cell) >= 0) c = static_cast<char>('a' + map_.SwitchAt(cell));
+      if (map_.SwitchAt(cell) == GridMap::kEveryDoor) {
+        c = '*';
+      } else if (map_.SwitchAt(cell) >= 0) {
+        c = static_cast<char>('a' + map_.SwitchAt(cell));
+      }
       if (map_.DoorAt(cell) >= 0) c = DoorOpen(state, map_.DoorAt(cell)) ? '/' : static_cast<char>('A' + map_.DoorAt(cell));
       for (int j = 0; j < num_npcs_; ++j) c = state[1 + num_agents_ + j] == cell ? 'P' : c;
-      for (int a = 0; a < num_agents_; ++a) c = state[AgentIndex(a)] == cell ? static_cast<char>('1' + a) : c;
+      for (int a = num_agents_ - 1; a >= 0; --a) c = state[AgentIndex(a)] == cell ? static_cast<char>('1' + a) : c;
       out.push_back(c);
     }
     out.push_back('\n');
@@ -529,12 +571,8 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConf
   if (const std::string problem = spec->second.check(map); !problem.empty()) {
     return absl::InvalidArgumentError(absl::StrCat(map.source(), ": ", config.name, " ", problem));
   }
-  int random_needed = 0;
-  for (int a = 0; a < num_agents; ++a) random_needed += map.FixedSpawn(a) < 0;
-  if (random_needed > static_cast<int>(map.random_spawns().size())) {
-    return absl::InvalidArgumentError(absl::StrCat(map.source(), ": ", random_needed,
-                                                   " agents need a random spawn but the map has ",
-                                                   map.random_spawns().size(), " 'S' cells"));
+  if (config.door_timer < -1 || config.door_timer > 30) {
+    return absl::InvalidArgumentError(absl::StrCat("door_timer ", config.door_timer, " not in [0, 30]"));
   }
   if (config.step_limit < 0 || config.step_limit > 100000) {
     return absl::InvalidArgumentError(absl::StrCat("step_limit ", config.step_limit, " not in [1, 100000]"));
@@ -548,7 +586,25 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConf
   if (!std::isnan(config.step_penalty) && !std::isfinite(config.step_penalty)) {
     return absl::InvalidArgumentError("step_penalty must be finite");
   }
-  return spec->second.make(std::move(map), config, num_agents);
+  const std::string source = map.source();
+  std::unique_ptr<Scenario> scenario = spec->second.make(std::move(map), config, num_agents);
+  if (config.door_timer >= 0 && scenario->door_timer() < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("door_timer is for the door scenarios (multi_room, pass, secret_room), not ", config.name));
+  }
+  if (scenario->map().shared_spawn() >= 0 && !scenario->agents_share_cells()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        source, ": '@' starts every agent on one cell, but ", config.name, "'s agents cannot share a cell"));
+  }
+  int random_needed = 0;
+  for (int a = 0; a < num_agents; ++a) random_needed += scenario->map().FixedSpawn(a) < 0;
+  const int pool = static_cast<int>(scenario->spawn_pool().size());
+  if (random_needed > 0 && (scenario->agents_share_cells() ? pool == 0 : random_needed > pool)) {
+    return absl::InvalidArgumentError(absl::StrCat(source, ": ", random_needed,
+                                                   " agents need a random spawn but the map has ",
+                                                   scenario->map().random_spawns().size(), " 'S' cells"));
+  }
+  return scenario;
 }
 
 std::string DefaultMapDir() {

@@ -37,6 +37,9 @@ struct ScenarioConfig {
   double success_reward = std::nan("");
   double step_penalty = std::nan("");
   int view_radius = 0;   // predator_prey: 0 = full observation, r = see others within r cells.
+  // Door scenarios (multi_room, pass, secret_room): EDTI's door-open interval
+  // `doi` (docs/scenarios.md, "Doors"); -1: the scenario default.
+  int door_timer = -1;
 };
 
 struct StepOutcome {
@@ -60,6 +63,14 @@ class Scenario {
   int step_index() const { return 1 + num_agents_ + num_npcs_; }
   int step_limit() const { return step_limit_; }
   int view_radius() const { return view_radius_; }
+  // True if agents move independently and may share a cell (EDTI's pass and
+  // secret_room); false: moves are resolved so that no two agents share one.
+  bool agents_share_cells() const { return agents_share_cells_; }
+  // Door scenarios: EDTI's door-open interval; -1 elsewhere.
+  virtual int door_timer() const { return -1; }
+  // Where agents without a fixed spawn start: the 'S' cells or, if agents may
+  // share a cell, every floor cell of the rooms holding an 'S'.
+  const std::vector<int32_t>& spawn_pool() const { return spawn_pool_; }
   float success_reward() const { return success_reward_; }
   float step_penalty() const { return step_penalty_; }
   // A hash of the map layout and the rules (name, agents, entities, actions,
@@ -95,18 +106,20 @@ class Scenario {
 
  protected:
   Scenario(GridMap map, const ScenarioConfig& config, int num_agents, int num_npcs, int num_actions,
-           int default_step_limit, float default_success_reward, float default_step_penalty);
+           int default_step_limit, float default_success_reward, float default_step_penalty,
+           bool agents_share_cells = false);
 
   // True if an agent or entity may enter `cell` given the doors of `state`.
   bool Enterable(const int32_t* state, int cell) const;
   // Simultaneous moves of `count` movers (cells updated in place): a move into
-  // a wall, a closed door, a blocked cell (`blocked(cell)` true) or off the
-  // grid fails; movers never share a cell or swap places; when several want
-  // the same cell, a random priority order drawn from `rng` (only on such
-  // steps) decides and the others stay. `others` are cells of non-movers.
+  // a wall, a closed door or off the grid fails. Unless agents share cells,
+  // movers never share a cell, swap places or enter `others` (cells of
+  // non-movers); when several want the same cell, a random priority order
+  // drawn from `rng` (only on such steps) decides and the others stay.
   void MoveAgents(const int32_t* state, int32_t* cells, int count, const int32_t* actions,
                   const int32_t* others, int num_others, Rng& rng) const;
-  // Places agents at their fixed spawns or on distinct random spawn cells.
+  // Places agents at their fixed spawns or on random cells of spawn_pool():
+  // distinct cells, or independent draws if agents share cells.
   void SpawnAgents(int32_t* cells, Rng& rng) const;
   // Moves the agents of `state` with `actions`, increments t. Returns new t.
   int StepAgents(int32_t* state, const int32_t* actions, Rng& rng) const;
@@ -122,6 +135,8 @@ class Scenario {
   int view_radius_;
   float success_reward_;
   float step_penalty_;
+  bool agents_share_cells_;
+  std::vector<int32_t> spawn_pool_;
 };
 
 // Names of the available scenarios.
@@ -129,8 +144,9 @@ std::vector<std::string> ScenarioNames();
 
 // Creates a scenario by name, loading its map (config.map_path or
 // <map_dir>/<name>.txt). Errors: INVALID_ARGUMENT for an unknown scenario, an
-// agent count the map cannot hold, a map lacking what the scenario needs, or a
-// bad step limit; NOT_FOUND / INVALID_ARGUMENT from the map loader.
+// agent count the map cannot hold, a map lacking what the scenario needs, a
+// bad step limit, or a door timer out of [0, 30] or given to a scenario
+// without doors; NOT_FOUND / INVALID_ARGUMENT from the map loader.
 absl::StatusOr<std::unique_ptr<Scenario>> MakeScenario(const ScenarioConfig& config,
                                                        const std::string& map_dir);
 

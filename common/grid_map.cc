@@ -16,6 +16,7 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
   int row = 0;
   int max_door = -1;
   std::vector<std::pair<int, int>> switch_lines(kMaxDoors, {0, 0});  // Where a switch was seen.
+  std::pair<int, int> master_line{0, 0};                             // Where a '*' was seen.
   for (absl::string_view line : absl::StrSplit(text, '\n')) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
@@ -50,6 +51,15 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
               absl::StrCat(source, ":", line_no, ":", col + 1, ": second spawn for agent ", agent + 1));
         }
         map.fixed_spawns_[agent] = cell;
+      } else if (c == '@') {
+        if (map.shared_spawn_ != -1) {
+          return absl::InvalidArgumentError(
+              absl::StrCat(source, ":", line_no, ":", col + 1, ": second '@' (spawn of every agent)"));
+        }
+        map.shared_spawn_ = cell;
+      } else if (c == '*') {
+        sw = kEveryDoor;
+        if (master_line.first == 0) master_line = {line_no, col + 1};
       } else if (c == 'S') {
         map.random_spawns_.push_back(cell);
       } else if (c == 'T') {
@@ -69,9 +79,9 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
       } else {
         return absl::InvalidArgumentError(
             absl::StrCat(source, ":", line_no, ":", col + 1, ": unknown map character '", std::string(1, c),
-                         "' (legend: # . 1-9 S T X Z G A-F a-f)"));
+                         "' (legend: # . 1-9 @ S T X Z G A-F a-f *)"));
       }
-      max_door = std::max<int>(max_door, std::max(door, sw));
+      max_door = std::max<int>(max_door, std::max<int>(door, sw == kEveryDoor ? -1 : sw));
       map.wall_.push_back(wall);
       map.zone_.push_back(zone);
       map.door_of_.push_back(door);
@@ -81,6 +91,14 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
   }
   map.height_ = row;
   if (map.height_ == 0) return absl::InvalidArgumentError(absl::StrCat(source, ": map has no rows"));
+  if (map.shared_spawn_ >= 0 && !map.fixed_spawns_.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(source, ": '@' (spawn of every agent) and spawns '1'-'9' cannot be mixed"));
+  }
+  if (master_line.first != 0 && max_door < 0) {
+    return absl::InvalidArgumentError(absl::StrCat(source, ":", master_line.first, ":", master_line.second,
+                                                   ": switch '*' but no door 'A'-'F'"));
+  }
   if (map.treasures_.size() > 16) {
     return absl::InvalidArgumentError(absl::StrCat(source, ": at most 16 treasures are supported"));
   }
@@ -91,7 +109,12 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
   map.switches_.resize(max_door + 1);
   for (int cell = 0; cell < map.num_cells(); ++cell) {
     if (map.door_of_[cell] >= 0) map.door_cells_[map.door_of_[cell]].push_back(cell);
-    if (map.switch_of_[cell] >= 0) map.switches_[map.switch_of_[cell]].push_back(cell);
+    const int sw = map.switch_of_[cell];
+    if (sw == kEveryDoor) {
+      for (auto& switches : map.switches_) switches.push_back(cell);
+    } else if (sw >= 0) {
+      map.switches_[sw].push_back(cell);
+    }
   }
   for (int d = 0; d <= max_door; ++d) {
     if (map.door_cells_[d].empty()) {
@@ -112,9 +135,11 @@ absl::StatusOr<GridMap> GridMap::Load(const std::string& path) {
   return Parse(buffer.str(), path);
 }
 
-std::vector<bool> GridMap::GoalRoom() const {
+std::vector<bool> GridMap::GoalRoom() const { return RoomOf(goal_markers_.empty() ? treasures_ : goal_markers_); }
+
+std::vector<bool> GridMap::RoomOf(const std::vector<int32_t>& seeds) const {
   std::vector<bool> room(num_cells(), false);
-  std::vector<int32_t> frontier = goal_markers_.empty() ? treasures_ : goal_markers_;
+  std::vector<int32_t> frontier = seeds;
   for (int32_t cell : frontier) room[cell] = true;
   while (!frontier.empty()) {
     const int cell = frontier.back();

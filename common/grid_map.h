@@ -17,7 +17,8 @@ namespace imca::env {
 //   'T' treasure          'X' button        'Z' prey zone (prey spawns and moves only here)
 //   'G' goal marker: the room (door-free connected region) holding it is the goal room
 //   'A'..'F' a cell of door 0..5 (several cells with one letter form one wide door)
-//   'a'..'f' a switch of door 0..5
+//   'a'..'f' a switch of door 0..5      '*' a switch of every door (EDTI's main switch)
+//   '@' fixed spawn of every agent (scenarios whose agents may share a cell)
 // Every special cell is also floor. Lines whose first character is ';' are
 // comments; blank lines are ignored. Cells are numbered row-major:
 // cell = row * width + col. Immutable after Parse; safe to share.
@@ -43,8 +44,11 @@ class GridMap {
 
   // Fixed spawn of agent a (0-based) or -1 when it spawns at random.
   int FixedSpawn(int agent) const {
+    if (shared_spawn_ >= 0) return shared_spawn_;
     return agent < static_cast<int>(fixed_spawns_.size()) ? fixed_spawns_[agent] : -1;
   }
+  // The '@' cell, or -1.
+  int shared_spawn() const { return shared_spawn_; }
   const std::vector<int32_t>& random_spawns() const { return random_spawns_; }
   const std::vector<int32_t>& treasures() const { return treasures_; }
   const std::vector<int32_t>& buttons() const { return buttons_; }
@@ -56,15 +60,20 @@ class GridMap {
   int num_doors() const { return static_cast<int>(door_cells_.size()); }
   // Door whose cell this is, or -1.
   int DoorAt(int cell) const { return door_of_[cell]; }
-  // Door this switch opens, or -1.
+  // Door this switch opens, kEveryDoor for a '*' switch, or -1.
+  static constexpr int kEveryDoor = kMaxDoors;
   int SwitchAt(int cell) const { return switch_of_[cell]; }
   const std::vector<int32_t>& door_cells(int door) const { return door_cells_[door]; }
+  // The switches that open `door`: its own and every '*'.
   const std::vector<int32_t>& switches(int door) const { return switches_[door]; }
 
   // Cells of the room holding the 'G' markers or, if there are none, the
   // treasures: the region reachable from them without crossing walls or
   // doors. Empty if the map has neither.
   std::vector<bool> GoalRoom() const;
+  // The region reachable from `seeds` without crossing walls or door cells
+  // (the seeds included), as a cell mask.
+  std::vector<bool> RoomOf(const std::vector<int32_t>& seeds) const;
 
   const std::string& source() const { return source_; }
 
@@ -76,6 +85,7 @@ class GridMap {
   std::vector<int8_t> door_of_;
   std::vector<int8_t> switch_of_;
   std::vector<int32_t> fixed_spawns_;  // Index = agent, -1 = none.
+  int32_t shared_spawn_ = -1;
   std::vector<int32_t> random_spawns_;
   std::vector<int32_t> treasures_;
   std::vector<int32_t> buttons_;

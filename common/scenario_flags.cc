@@ -12,6 +12,9 @@ ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");
 ABSL_FLAG(double, success_reward, std::nan(""), "reward to each agent on success (default: the scenario's)");
 ABSL_FLAG(double, step_penalty, std::nan(""), "cost to each agent per step (default: the scenario's)");
 ABSL_FLAG(int, view_radius, 0, "partial observation: see others within this many cells (0: everything)");
+ABSL_FLAG(int, door_timer, -1,
+          "door scenarios: EDTI's door-open interval doi, a door passes doi + 1 moves after it opens "
+          "(-1: the scenario default, 0 for multi_room, 8 for pass and secret_room)");
 
 namespace imca {
 
@@ -24,6 +27,7 @@ absl::StatusOr<std::unique_ptr<env::Scenario>> ScenarioFromFlags() {
   config.success_reward = absl::GetFlag(FLAGS_success_reward);
   config.step_penalty = absl::GetFlag(FLAGS_step_penalty);
   config.view_radius = absl::GetFlag(FLAGS_view_radius);
+  config.door_timer = absl::GetFlag(FLAGS_door_timer);
   return env::MakeScenario(config, env::DefaultMapDir());
 }
 

@@ -9,7 +9,7 @@
 namespace imca {
 
 // The scenario flags every binary shares: --scenario, --map, --num_agents,
-// --step_limit, --success_reward, --step_penalty, --view_radius. Call after absl::ParseCommandLine. Errors: those of
+// --step_limit, --success_reward, --step_penalty, --view_radius, --door_timer. Call after absl::ParseCommandLine. Errors: those of
 // env::MakeScenario (the message names the map file or the scenario).
 absl::StatusOr<std::unique_ptr<env::Scenario>> ScenarioFromFlags();
 

@@ -46,6 +46,7 @@ constexpr std::array<Rgb, kNumColors> kPalette = {{
     {145, 30, 180},
     {240, 120, 0},
     {0, 200, 200},
+    {0, 0, 0},  // A switch of every door.
 }};
 static_assert(sizeof(Rgb) == 3, "libpng reads the palette as packed RGB triples");
 

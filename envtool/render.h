@@ -29,8 +29,9 @@ enum Color : uint8_t {
   kGoalRoom,                                   // Floor tint.
   kNpc,                                        // The prey.
   kFirstAgent,                                 // Agent a: kFirstAgent + a.
-  kFirstDoor = kFirstAgent + env::kMaxAgents,  // Door d and its switches: kFirstDoor + d.
-  kNumColors = kFirstDoor + env::GridMap::kMaxDoors,
+  kFirstDoor = kFirstAgent + env::kMaxAgents,  // Door d and its switches: kFirstDoor + d,
+                                               // then a switch of every door ('*').
+  kNumColors = kFirstDoor + env::GridMap::kEveryDoor + 1,
 };
 inline uint8_t AgentColor(int agent) { return static_cast<uint8_t>(kFirstAgent + agent); }
 inline uint8_t DoorColor(int door) { return static_cast<uint8_t>(kFirstDoor + door); }

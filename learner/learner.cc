@@ -23,7 +23,7 @@ constexpr char kMetricsHeader[] =
     "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
     "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,"
     "ms_wait,ms_featurise,ms_values,ms_gae,ms_copy,ms_prepare,ms_forward,ms_backward,ms_optimizer,ms_publish,"
-    "global_reward,contribution_abs";
+    "global_reward,contribution_abs,success_episodes,train_success_episodes";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -491,9 +491,12 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditSta
   }
   const v1::LearnerStatus s = Status();
   double train_success;
+  size_t eval_episodes, train_episodes;  // How many episodes each success rate is over.
   {
     absl::MutexLock lock(&mu_);
     train_success = Mean(train_success_);
+    eval_episodes = eval_success_.size();
+    train_episodes = train_success_.size();
   }
   metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g",
                               iteration_, s.env_steps(), s.wall_seconds(), s.env_steps_per_sec(),
@@ -508,7 +511,8 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditSta
                          stats.seconds_optimizer, phases_.publish}) {
     metrics_ << absl::StrFormat(",%.2f", 1e3 * seconds);
   }
-  metrics_ << absl::StrFormat(",%.6g,%.6g", credit.global_reward, credit.contribution_abs);
+  metrics_ << absl::StrFormat(",%.6g,%.6g,%d,%d", credit.global_reward, credit.contribution_abs, eval_episodes,
+                              train_episodes);
   for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
   metrics_ << "\n";
   metrics_.flush();

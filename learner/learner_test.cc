@@ -171,7 +171,8 @@ TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
   std::string header, row;
   ASSERT_TRUE(std::getline(metrics, header));
   ASSERT_TRUE(std::getline(metrics, row));
-  EXPECT_THAT(header, HasSubstr(",global_reward,contribution_abs,share_1,share_2"));
+  EXPECT_THAT(header,
+              HasSubstr(",global_reward,contribution_abs,success_episodes,train_success_episodes,share_1,share_2"));
   EXPECT_EQ(std::count(header.begin(), header.end(), ','), std::count(row.begin(), row.end(), ','));
 }
 

@@ -11,29 +11,30 @@
 #include "reward_server/count_table.h"
 #include "reward_server/credit.h"
 #include "reward_server/joint_key.h"
-#include "reward_server/scorer.h"
+#include "reward_server/novelty.h"
 
 namespace imca::reward {
 
-// Count-based novelty N(x) = 1 / sqrt(C_before(x) + 1) with the credit modes
-// of SPEC section 5 (docs/credit.md works an example):
-//   none:        every output 0, no table touched.
-//   shared:      r_i^a = R_i = beta * N(S, U).
-//   independent: r_i^a = beta * N_a(s^a, u^a) from per-agent tables;
-//                R_i is reported as the team sum.
-//   imca:        r^a = N(S,U) - sum_u' pi^a(u') N(S, (U^-a, u')),
-//                p^a = softmax(r / tau), r_i^a = p^a * R_i.
-// shares always report p^a = r_i^a / sum_b r_i^b (1/n when the sum is 0).
+// Count-based novelty N(x) = 1 / sqrt(C_before(x) + 1) (SPEC 4.1;
+// docs/credit.md works an example), for CreditScorer:
+//   joint (shared, imca): N(S, U) from the joint table;
+//   imca contributions:   r^a = N(S,U) - sum_u' pi^a(u') N(S, (U^-a, u')),
+//                         every counterfactual read before this
+//                         transition's increment (scale 1);
+//   local (independent):  N_a(s^a, u^a) from per-agent tables.
+// Transitions are read and then counted one at a time, in order.
 // Permutation modes map keys: canonical sorts the agents' pairs by cell for
 // every lookup and increment; random increments the key of a random
 // permutation of the pairs (lookups use agent order), as the paper's 4.3.
 // For independent credit, permutation other than off makes homogeneous agents
 // share one local table. Thread-safe (one mutex).
-class CountScorer final : public Scorer {
+class CountNovelty final : public Novelty {
  public:
-  CountScorer(const env::Scenario& scenario, const ScorerConfig& config);
+  CountNovelty(const env::Scenario& scenario, const ScorerConfig& config);
 
-  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  bool Supports(Credit credit) const override { return true; }
+  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
+                       const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
@@ -43,9 +44,8 @@ class CountScorer final : public Scorer {
   uint32_t JointCount(const int32_t* state, const int32_t* actions) const;
 
  private:
-  void ScoreOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
-                float* global, float* contributions, float* shares, float* agent_rewards)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  void ComputeOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
+                  const NoveltyOutput& out, int64_t i) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   std::string ConfigTag() const;
 
   const std::string scenario_tag_;  // Scenario name and map size, for snapshots.

@@ -13,6 +13,8 @@
 namespace imca::reward {
 namespace {
 
+using ::imca::testing::CountScorer;
+
 constexpr int kN = 2;
 constexpr int kA = 5;
 constexpr float kTol = 1e-5f;

@@ -1,8 +1,12 @@
 #include "reward_server/count_table.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <fstream>
 #include <istream>
 #include <ostream>
+
+#include "absl/strings/str_cat.h"
 
 namespace imca::reward {
 
@@ -34,6 +38,41 @@ absl::Status CountTable::Read(std::istream& in) {
     counts[key] = count;
   }
   counts_.swap(counts);
+  return absl::OkStatus();
+}
+
+absl::Status SaveTables(const std::string& path, const std::string& tag, const std::vector<const CountTable*>& tables) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) return absl::InternalError(absl::StrCat("cannot write snapshot '", tmp, "'"));
+    out << tag << "\n";
+    for (const CountTable* table : tables) {
+      if (absl::Status status = table->Write(out); !status.ok()) return status;
+    }
+    out.flush();
+    if (!out) return absl::InternalError(absl::StrCat("writing snapshot '", tmp, "' failed"));
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status LoadTables(const std::string& path, const std::string& tag, const std::vector<CountTable*>& tables) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat("no snapshot at '", path, "'"));
+  std::string written;
+  std::getline(in, written);
+  if (written != tag) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("snapshot '", path, "' was written by '", written, "', not by this configuration"));
+  }
+  std::vector<CountTable> read(tables.size());
+  for (CountTable& table : read) {
+    if (absl::Status status = table.Read(in); !status.ok()) return status;
+  }
+  for (size_t i = 0; i < tables.size(); ++i) *tables[i] = std::move(read[i]);
   return absl::OkStatus();
 }
 

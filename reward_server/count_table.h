@@ -3,6 +3,8 @@
 
 #include <cstdint>
 #include <iosfwd>
+#include <string>
+#include <vector>
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
@@ -19,6 +21,7 @@ class CountTable {
     return it == counts_.end() ? 0 : it->second;
   }
   void Increment(uint64_t key) { ++counts_[key]; }
+  void Add(uint64_t key, uint32_t count) { counts_[key] += count; }
   int64_t size() const { return static_cast<int64_t>(counts_.size()); }
   void Reserve(int64_t keys) { counts_.reserve(keys); }
 
@@ -30,6 +33,15 @@ class CountTable {
  private:
   absl::flat_hash_map<uint64_t, uint32_t> counts_;
 };
+
+// A count snapshot: one line `tag` (the writer's configuration), then the
+// tables in order. Save writes it atomically (tmp file + rename): a crash
+// leaves the old file or the new one, never half of it. Errors: INTERNAL
+// naming the path.
+absl::Status SaveTables(const std::string& path, const std::string& tag, const std::vector<const CountTable*>& tables);
+// Reads a snapshot into `tables` (all or none replaced). Errors: NOT_FOUND
+// (unreadable), FAILED_PRECONDITION (written under another tag), DATA_LOSS.
+absl::Status LoadTables(const std::string& path, const std::string& tag, const std::vector<CountTable*>& tables);
 
 }  // namespace imca::reward
 

@@ -11,14 +11,16 @@
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
-#include "reward_server/count_scorer.h"
-#include "reward_server/rnd_scorer.h"
-#include "reward_server/sf_scorer.h"
+#include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
-ABSL_FLAG(std::string, reward, "count", "global reward kind: count|rnd|sf");
+ABSL_FLAG(std::string, reward, "count", "reward kind: count|rnd|sf|eiti|edti");
+ABSL_FLAG(double, eta, 10.0, "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)");
+ABSL_FLAG(double, beta_t, 10.0, "eiti: coefficient of the summed influence c_{i->j}");
+ABSL_FLAG(bool, influence_log, false,
+          "eiti, edti: influence as the paper's log ratio instead of the released code's 1 - 1/x");
 ABSL_FLAG(double, sf_gamma, 0.95, "sf: successor-feature discount");
 ABSL_FLAG(double, sf_lr, 1e-3, "sf: Adam learning rate of psi");
 ABSL_FLAG(double, rnd_lr, 1e-3, "rnd: Adam learning rate of the predictor");
@@ -62,28 +64,19 @@ int main(int argc, char** argv) {
   if (!(config.beta >= 0)) return Fail("--beta must be >= 0");
   if (!(config.temperature > 0)) return Fail("--temperature must be > 0");
   const std::string kind = absl::GetFlag(FLAGS_reward);
-  std::unique_ptr<reward::Scorer> scorer;
-  if (kind == "count") {
-    scorer = std::make_unique<reward::CountScorer>(**scenario, config);
-  } else if (kind == "rnd") {
-    reward::RndConfig rnd;
-    rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
-    rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
-    rnd.threads = absl::GetFlag(FLAGS_threads);
-    auto created = reward::RndScorer::Create(**scenario, config, rnd);
-    if (!created.ok()) return Fail(absl::StrCat("--rnd_*: ", created.status().message()));
-    scorer = *std::move(created);
-  } else if (kind == "sf") {
-    reward::SfConfig sf;
-    sf.gamma = absl::GetFlag(FLAGS_sf_gamma);
-    sf.learning_rate = absl::GetFlag(FLAGS_sf_lr);
-    sf.threads = absl::GetFlag(FLAGS_threads);
-    auto created = reward::SfScorer::Create(**scenario, config, sf);
-    if (!created.ok()) return Fail(absl::StrCat("--sf_*: ", created.status().message()));
-    scorer = *std::move(created);
-  } else {
-    return Fail(absl::StrCat("--reward '", kind, "' is not one of count|rnd|sf"));
-  }
+  reward::RewardKindConfig kinds;
+  kinds.rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
+  kinds.rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
+  kinds.rnd.threads = absl::GetFlag(FLAGS_threads);
+  kinds.sf.gamma = absl::GetFlag(FLAGS_sf_gamma);
+  kinds.sf.learning_rate = absl::GetFlag(FLAGS_sf_lr);
+  kinds.sf.threads = absl::GetFlag(FLAGS_threads);
+  kinds.influence.eta = absl::GetFlag(FLAGS_eta);
+  kinds.influence.beta_t = absl::GetFlag(FLAGS_beta_t);
+  kinds.influence.log_form = absl::GetFlag(FLAGS_influence_log);
+  auto made = reward::MakeScorer(kind, **scenario, config, kinds);
+  if (!made.ok()) return Fail(absl::StrCat("--reward ", kind, ": ", made.status().message()));
+  std::unique_ptr<reward::Scorer> scorer = *std::move(made);
 
   const std::string snapshot = absl::GetFlag(FLAGS_snapshot);
   if (!snapshot.empty() && std::ifstream(snapshot).good()) {

@@ -56,6 +56,10 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
   out.contributions = response->mutable_contributions()->mutable_data();
   out.shares = response->mutable_shares()->mutable_data();
   out.agent_rewards = response->mutable_agent_rewards()->mutable_data();
+  if (scorer_->ReturnsInfluences()) {
+    response->mutable_influences()->Resize(count * n * n, 0.0f);
+    out.influences = response->mutable_influences()->mutable_data();
+  }
   if (absl::Status status = scorer_->Score(batch, request->dry_run(), out); !status.ok()) {
     return ToGrpcStatus(status);
   }

@@ -12,7 +12,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/reward_service.grpc.pb.h"
-#include "reward_server/count_scorer.h"
+#include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 
 namespace imca::reward {
@@ -27,7 +27,9 @@ class RewardServiceTest : public ::testing::Test {
     ASSERT_TRUE(scenario.ok()) << scenario.status();
     scenario_ = *std::move(scenario);
     config_.credit = Credit::kImca;
-    scorer_ = std::make_unique<CountScorer>(*scenario_, config_);
+    auto scorer = MakeScorer("count", *scenario_, config_);
+    ASSERT_TRUE(scorer.ok()) << scorer.status();
+    scorer_ = *std::move(scorer);
     service_ = std::make_unique<RewardServiceImpl>(scenario_.get(), scorer_.get(), "count", config_,
                                                    snapshot_);
     auto server = StartServer("127.0.0.1:0", {service_.get()}, &port_);
@@ -59,7 +61,7 @@ class RewardServiceTest : public ::testing::Test {
   std::unique_ptr<env::Scenario> scenario_;
   ScorerConfig config_;
   std::string snapshot_;
-  std::unique_ptr<CountScorer> scorer_;
+  std::unique_ptr<CreditScorer> scorer_;
   std::unique_ptr<RewardServiceImpl> service_;
   int port_ = 0;
   std::unique_ptr<grpc::Server> server_;

@@ -154,7 +154,7 @@ torch::Tensor StreamReturns(const torch::Tensor& novelty, int64_t T, int64_t E, 
 
 }  // namespace
 
-struct RndScorer::Impl {
+struct RndNovelty::Impl {
   Impl(const env::Scenario& scenario, const ScorerConfig& config, const RndConfig& rnd)
       : n(scenario.num_agents()),
         num_actions(scenario.num_actions()),
@@ -173,9 +173,9 @@ struct RndScorer::Impl {
     }
   }
 
-  void ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out)
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
-  void ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out)
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
   void TrainJoint(const TransitionBatch& batch, const torch::Tensor& inputs) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
 
@@ -194,9 +194,9 @@ struct RndScorer::Impl {
   int64_t updates ABSL_GUARDED_BY(mu) = 0;
 };
 
-void RndScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const int64_t N = batch.size, D = encoder.joint_dim(), A = num_actions;
-  const bool imca = config.credit == Credit::kImca;
+  const bool imca = out.contributions != nullptr;
   torch::Tensor inputs = torch::empty({N, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   std::vector<int> orders(N * n);
@@ -229,34 +229,22 @@ void RndScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, con
   // Counterfactual novelties [N][n slots][A], scaled like the bonus (SPEC 5).
   torch::Tensor cf;
   if (imca) cf = (model.CounterfactualNovelty(normalized, taken, encoder.state_dim(), n, A) / std).contiguous();
-  const float beta = static_cast<float>(config.beta);
   for (int64_t i = 0; i < N; ++i) {
-    out.global_rewards[i] = beta * nov[i];
-    float* contributions = out.contributions + i * n;
-    float* shares = out.shares + i * n;
-    float* rewards = out.agent_rewards + i * n;
-    if (!imca) {
-      for (int a = 0; a < n; ++a) {
-        contributions[a] = 0;
-        shares[a] = 1.0f / n;
-        rewards[a] = out.global_rewards[i];
-      }
-      continue;
-    }
+    out.joint[i] = nov[i];
+    if (!imca) continue;
     for (int a = 0; a < n; ++a) {
       double baseline = 0;
       const float* probs = batch.action_probs + (i * n + a) * A;
       const float* counterfactual = cf.data_ptr<float>() + (i * n + slot_of[i * n + a]) * A;
       for (int u = 0; u < A; ++u) baseline += probs[u] * counterfactual[u];
-      contributions[a] = static_cast<float>(nov[i] - baseline);
+      out.contributions[i * n + a] = static_cast<float>(nov[i] - baseline);
+      out.agent_scale[i * n + a] = 1.0f;
     }
-    SoftmaxShares(contributions, n, config.temperature, shares);
-    for (int a = 0; a < n; ++a) rewards[a] = shares[a] * out.global_rewards[i];
   }
   if (!dry_run) TrainJoint(batch, inputs);
 }
 
-void RndScorer::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {
+void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {
   Model& model = *joint;
   const int64_t N = batch.size, D = encoder.joint_dim();
   torch::Tensor train = taken;
@@ -283,7 +271,7 @@ void RndScorer::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tens
   ++updates;
 }
 
-void RndScorer::Impl::ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_dim(with_id);
   torch::Tensor inputs = torch::empty({N * n, D}, torch::kFloat32);
@@ -302,24 +290,14 @@ void RndScorer::Impl::ScoreLocal(const TransitionBatch& batch, bool dry_run, con
   }
   const torch::Tensor scaled = (novelty / model.RewardStd()).contiguous();
   const float* nov = scaled.data_ptr<float>();
-  const float beta = static_cast<float>(config.beta);
-  for (int64_t i = 0; i < N; ++i) {
-    float total = 0;
-    for (int a = 0; a < n; ++a) {
-      out.contributions[i * n + a] = nov[i * n + a];
-      out.agent_rewards[i * n + a] = beta * nov[i * n + a];
-      total += out.agent_rewards[i * n + a];
-    }
-    out.global_rewards[i] = total;
-    for (int a = 0; a < n; ++a) out.shares[i * n + a] = total > 0 ? out.agent_rewards[i * n + a] / total : 1.0f / n;
-  }
+  std::copy(nov, nov + N * n, out.local);
   if (!dry_run) {
     model.Train(model.Normalize(inputs));
     ++updates;
   }
 }
 
-absl::StatusOr<std::unique_ptr<RndScorer>> RndScorer::Create(const env::Scenario& scenario,
+absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenario& scenario,
                                                              const ScorerConfig& config, const RndConfig& rnd) {
   if (rnd.output < 1) return absl::InvalidArgumentError("rnd output size must be >= 1");
   for (int h : rnd.hidden) {
@@ -332,24 +310,20 @@ absl::StatusOr<std::unique_ptr<RndScorer>> RndScorer::Create(const env::Scenario
   if (!(rnd.gamma >= 0 && rnd.gamma < 1)) return absl::InvalidArgumentError("rnd gamma must be in [0, 1)");
   torch::set_num_threads(std::max(1, rnd.threads));
   torch::manual_seed(config.seed);
-  return std::unique_ptr<RndScorer>(new RndScorer(std::make_unique<Impl>(scenario, config, rnd)));
+  return std::unique_ptr<RndNovelty>(new RndNovelty(std::make_unique<Impl>(scenario, config, rnd)));
 }
 
-RndScorer::RndScorer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-RndScorer::~RndScorer() = default;
+RndNovelty::RndNovelty(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+RndNovelty::~RndNovelty() = default;
 
-absl::Status RndScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
-  const int n = impl_->n;
-  if (impl_->config.credit == Credit::kNone) {
-    WriteNoCredit(batch, n, out);
-    return absl::OkStatus();
-  }
+absl::Status RndNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
+                                 const NoveltyOutput& out) {
   absl::MutexLock lock(&impl_->mu);
   try {
-    if (impl_->config.credit == Credit::kIndependent) {
-      impl_->ScoreLocal(batch, dry_run, out);
+    if (credit == Credit::kIndependent) {
+      impl_->ComputeLocal(batch, dry_run, out);
     } else {
-      impl_->ScoreJoint(batch, dry_run, out);
+      impl_->ComputeJoint(batch, dry_run, out);
     }
   } catch (const std::exception& e) {
     return absl::InternalError(absl::StrCat("rnd: ", e.what()));
@@ -357,17 +331,17 @@ absl::Status RndScorer::Score(const TransitionBatch& batch, bool dry_run, const 
   return absl::OkStatus();
 }
 
-void RndScorer::FillStats(v1::RewardStats* stats) const {
+void RndNovelty::FillStats(v1::RewardStats* stats) const {
   absl::MutexLock lock(&impl_->mu);
   stats->set_model_updates(impl_->updates);
 }
 
-absl::Status RndScorer::Save(const std::string& path) const {
+absl::Status RndNovelty::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
   return SaveModels(path, impl_->tag, impl_->joint, impl_->local, "updates", impl_->updates);
 }
 
-absl::Status RndScorer::Load(const std::string& path) {
+absl::Status RndNovelty::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
@@ -376,7 +350,7 @@ absl::Status RndScorer::Load(const std::string& path) {
       [&] { return Model(impl.encoder.local_dim(with_id), impl.rnd); }, "updates", &impl.updates);
 }
 
-absl::Status RndScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
+absl::Status RndNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
                                          const std::vector<float>& bias) {
   absl::MutexLock lock(&impl_->mu);
   const bool is_local = net.rfind("local_", 0) == 0;

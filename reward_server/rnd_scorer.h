@@ -8,7 +8,7 @@
 #include "absl/status/statusor.h"
 #include "common/env.h"
 #include "reward_server/credit.h"
-#include "reward_server/scorer.h"
+#include "reward_server/novelty.h"
 
 namespace imca::reward {
 
@@ -23,27 +23,29 @@ struct RndConfig {
 };
 
 // Random network distillation (paper eq. 6, SPEC 4.2) on the encoded joint
-// state + one-hot joint action (JointInputEncoder), with the credit modes of
-// SPEC 5 (docs/credit.md):
+// state + one-hot joint action (JointInputEncoder), for CreditScorer
+// (docs/credit.md):
 //   N(x) = mean((f(x') - f^(x'))^2), x' = clip((x - mean) / std, -5, 5),
 //   then divided by the running std of the discounted intrinsic return
 //   (per env stream of each request, gamma), so that tau means the same as
-//   for counts. imca: r^a = N(S,U) - sum_u' pi^a(u') N(S,(U^-a,u')) with all
-//   n*|A| counterfactual inputs of a batch in one forward pass; independent: a
-//   second RND over each agent's local (cell, action[, id]).
+//   for counts. imca contributions: r^a = N(S,U) - sum_u' pi^a(u') N(S,(U^-a,u'))
+//   with all n*|A| counterfactual inputs of a batch in one forward pass (scale
+//   1); local (independent): a second RND over each agent's (cell, action[, id]).
 // A request is scored with the predictor as it was before the request, then
 // the predictor takes one Adam step on the request's (S,U) inputs (a random
 // `update_proportion` of them; under permutation random, on a random slot
 // order of each). Thread-safe: one mutex serialises requests.
-class RndScorer final : public Scorer {
+class RndNovelty final : public Novelty {
  public:
   // Errors: INVALID_ARGUMENT for bad config values.
-  static absl::StatusOr<std::unique_ptr<RndScorer>> Create(const env::Scenario& scenario,
-                                                           const ScorerConfig& config,
-                                                           const RndConfig& rnd);
-  ~RndScorer() override;
+  static absl::StatusOr<std::unique_ptr<RndNovelty>> Create(const env::Scenario& scenario,
+                                                            const ScorerConfig& config,
+                                                            const RndConfig& rnd);
+  ~RndNovelty() override;
 
-  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  bool Supports(Credit credit) const override { return true; }
+  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
+                       const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
@@ -57,7 +59,7 @@ class RndScorer final : public Scorer {
 
  private:
   struct Impl;
-  explicit RndScorer(std::unique_ptr<Impl> impl);
+  explicit RndNovelty(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -1,6 +1,7 @@
 // RND novelty with credit assignment (paper eq. 6, 9-10), on tiny networks
 // whose weights the test sets, and the learned-model properties.
 #include "reward_server/rnd_scorer.h"
+#include "reward_server/make_scorer.h"
 
 #include "reward_server/scorer_testing.h"
 
@@ -15,6 +16,8 @@
 
 namespace imca::reward {
 namespace {
+
+using ::imca::testing::Credited;
 
 constexpr int kN = 2;
 constexpr int kA = 5;
@@ -31,23 +34,23 @@ class RndScorerTest : public ::testing::Test {
     scenario_ = *std::move(scenario);
   }
 
-  Scored Score(RndScorer& scorer, const std::vector<std::vector<int32_t>>& cells,
+  Scored Score(Scorer& scorer, const std::vector<std::vector<int32_t>>& cells,
                const std::vector<std::vector<int32_t>>& actions, const std::vector<std::vector<float>>& probs,
                bool dry_run) {
     return ::imca::testing::ScoreSteps(scorer, {cells, actions, probs, {}, {}}, dry_run);
   }
 
-  Scored ScoreUnroll(RndScorer& scorer, const v1::Unroll& u, bool dry_run) {
+  Scored ScoreUnroll(Scorer& scorer, const v1::Unroll& u, bool dry_run) {
     return ::imca::testing::ScoreUnroll(scorer, u, dry_run);
   }
 
-  std::unique_ptr<RndScorer> Make(Credit credit, Permutation permutation, RndConfig rnd = {}) {
+  std::unique_ptr<Credited<RndNovelty>> Make(Credit credit, Permutation permutation, RndConfig rnd = {}) {
     ScorerConfig config;
     config.credit = credit;
     config.permutation = permutation;
-    auto scorer = RndScorer::Create(*scenario_, config, rnd);
-    EXPECT_TRUE(scorer.ok()) << scorer.status();
-    return *std::move(scorer);
+    auto kind = RndNovelty::Create(*scenario_, config, rnd);
+    EXPECT_TRUE(kind.ok()) << kind.status();
+    return std::make_unique<Credited<RndNovelty>>(*std::move(kind), config, scenario_->num_agents());
   }
 
   std::unique_ptr<env::Scenario> scenario_;
@@ -66,8 +69,8 @@ TEST_F(RndScorerTest, CounterfactualCreditMatchesHandWorkedNumbers) {
   std::vector<float> w(23, 0.0f);
   for (int u = 0; u < kA; ++u) w[13 + u] = 0.5f * u;
   w[18] = 1.0f;
-  ASSERT_TRUE(scorer->SetLinearForTest("target", 0, w, {0.0f}).ok());
-  ASSERT_TRUE(scorer->SetLinearForTest("predictor", 0, std::vector<float>(23, 0.0f), {0.0f}).ok());
+  ASSERT_TRUE(scorer->kind().SetLinearForTest("target", 0, w, {0.0f}).ok());
+  ASSERT_TRUE(scorer->kind().SetLinearForTest("predictor", 0, std::vector<float>(23, 0.0f), {0.0f}).ok());
   const std::vector<float> uniform(2 * kA, 0.2f);
   Scored r = Score(*scorer, {{0, 4}}, {{2, 0}}, {uniform}, /*dry_run=*/true);
   // N(S,U) = (1 + 1)^2 = 4.
@@ -80,7 +83,7 @@ TEST_F(RndScorerTest, CounterfactualCreditMatchesHandWorkedNumbers) {
   EXPECT_NEAR(r.shares[1], 0.9478464f, 1e-5);
   EXPECT_NEAR(r.agent_rewards[0], 0.2086145f, 1e-5);
   EXPECT_NEAR(r.agent_rewards[1], 3.7913855f, 1e-5);
-  ASSERT_FALSE(scorer->SetLinearForTest("target", 0, {1.0f}, {0.0f}).ok());
+  ASSERT_FALSE(scorer->kind().SetLinearForTest("target", 0, {1.0f}, {0.0f}).ok());
 }
 
 TEST_F(RndScorerTest, CounterfactualsOfADeepNormalisedModelEqualScoringTheAlternatives) {
@@ -164,14 +167,15 @@ TEST_F(RndScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
   ScorerConfig config;
   config.credit = Credit::kImca;
   config.seed = 99;  // Other initial weights: everything must come from the file.
-  auto restored = RndScorer::Create(*scenario_, config, RndConfig{});
-  ASSERT_TRUE(restored.ok());
-  ASSERT_TRUE((*restored)->Load(path).ok());
+  auto made = MakeScorer("rnd", *scenario_, config);
+  ASSERT_TRUE(made.ok());
+  std::unique_ptr<CreditScorer> restored = *std::move(made);
+  ASSERT_TRUE(restored->Load(path).ok());
   const Scored a = ScoreUnroll(*scorer, u, false);
-  const Scored b = ScoreUnroll(**restored, u, false);
+  const Scored b = ScoreUnroll(*restored, u, false);
   EXPECT_EQ(a.agent_rewards, b.agent_rewards);
   // And they keep learning identically.
-  EXPECT_EQ(ScoreUnroll(*scorer, u, true).global, ScoreUnroll(**restored, u, true).global);
+  EXPECT_EQ(ScoreUnroll(*scorer, u, true).global, ScoreUnroll(*restored, u, true).global);
   auto other = Make(Credit::kShared, Permutation::kOff);
   EXPECT_EQ(other->Load(path).code(), absl::StatusCode::kFailedPrecondition);
   std::remove(path.c_str());

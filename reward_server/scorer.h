@@ -31,6 +31,7 @@ struct ScoreOutput {
   float* contributions = nullptr;   // [N][n], r^a (count, RND) or d^a (SF)
   float* shares = nullptr;          // [N][n], p^a
   float* agent_rewards = nullptr;   // [N][n], r_i^a
+  float* influences = nullptr;      // [N][n][n], c_{i->j}; only if the scorer ReturnsInfluences().
 };
 
 // Credit `none`: every output 0, shares 1/n.
@@ -56,6 +57,8 @@ class Scorer {
   // fail on validated input; returns INTERNAL on an internal failure, with no
   // state changed.
   virtual absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) = 0;
+  // True if Score also writes ScoreOutput::influences (EDTI).
+  virtual bool ReturnsInfluences() const { return false; }
   // Fills the kind-specific fields of `stats`.
   virtual void FillStats(v1::RewardStats* stats) const = 0;
   // Writes all learned state to `path` atomically (tmp file + rename).

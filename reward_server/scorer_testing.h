@@ -8,12 +8,32 @@
 
 #include "gtest/gtest.h"
 #include "imca/v1/unroll.pb.h"
+#include "common/env.h"
+#include "reward_server/count_scorer.h"
+#include "reward_server/novelty.h"
 #include "reward_server/scorer.h"
 
 namespace imca::testing {
 
 using reward::Scorer;
 using reward::TransitionBatch;
+
+// Reward kind K under the one credit rule, with K's test probes reachable.
+template <typename K>
+class Credited : public reward::CreditScorer {
+ public:
+  Credited(std::unique_ptr<K> kind, const reward::ScorerConfig& config, int n)
+      : CreditScorer(std::move(kind), config, n) {}
+  K& kind() { return static_cast<K&>(novelty()); }
+};
+
+// Count novelty with credit, as the reward server builds it.
+class CountScorer : public Credited<reward::CountNovelty> {
+ public:
+  CountScorer(const env::Scenario& scenario, const reward::ScorerConfig& config)
+      : Credited(std::make_unique<reward::CountNovelty>(scenario, config), config, scenario.num_agents()) {}
+  uint32_t JointCount(const int32_t* state, const int32_t* actions) { return kind().JointCount(state, actions); }
+};
 
 struct ScoredBatch {
   std::vector<float> global, contributions, shares, agent_rewards;

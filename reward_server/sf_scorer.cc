@@ -110,7 +110,7 @@ uint64_t Mix(uint64_t h, uint64_t x) {
 
 }  // namespace
 
-struct SfScorer::Impl {
+struct SfNovelty::Impl {
   Impl(const env::Scenario& scenario, const ScorerConfig& config, const SfConfig& sf)
       : n(scenario.num_agents()),
         config(config),
@@ -159,8 +159,10 @@ struct SfScorer::Impl {
     encoder.EncodeState(state, order, x.data());
     return torch::tensor(x).unsqueeze(0);
   }
-  void ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
-  void ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
 
   const int n;
   const ScorerConfig config;
@@ -176,9 +178,9 @@ struct SfScorer::Impl {
   absl::flat_hash_map<uint64_t, uint32_t> previous_visits ABSL_GUARDED_BY(mu);
 };
 
-void SfScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const int64_t N = batch.size, D = encoder.state_dim(), K = batch.state_size;
-  const bool imca = config.credit == Credit::kImca;
+  const bool imca = out.contributions != nullptr;
   // Rows: S_t [N], S_{t+1} [N], then (imca) S_t with only agent a moved [N][n].
   const int64_t rows = N * (2 + (imca ? n : 0));
   torch::Tensor inputs = torch::empty({rows, D}, torch::kFloat32);
@@ -209,36 +211,23 @@ void SfScorer::Impl::ScoreJoint(const TransitionBatch& batch, bool dry_run, cons
   if (imca) {
     d = (psi.narrow(0, 2 * N, N * n).view({N, n, -1}) - psi_now.unsqueeze(1)).pow(2).sum(2).contiguous();
   }
-  const float beta = static_cast<float>(config.beta);
   for (int64_t i = 0; i < N; ++i) {
-    const float R = beta * g[i];
-    out.global_rewards[i] = R;
-    float* contributions = out.contributions + i * n;
-    float* shares = out.shares + i * n;
-    float* rewards = out.agent_rewards + i * n;
-    if (!imca) {
-      for (int a = 0; a < n; ++a) {
-        contributions[a] = 0;
-        shares[a] = 1.0f / n;
-        rewards[a] = R;
-      }
-      continue;
-    }
+    out.joint[i] = g[i];
+    if (!imca) continue;
     const float* da = d.data_ptr<float>() + i * n;
-    for (int a = 0; a < n; ++a) contributions[a] = da[a];
-    SoftmaxShares(contributions, n, config.temperature, shares);
     const int32_t* next = batch.next_states + i * K;
     for (int a = 0; a < n; ++a) {
+      out.contributions[i * n + a] = da[a];
       uint64_t key = Mix(Mix(Mix(batch.actor, static_cast<uint64_t>(batch.episode_ids[i])), a),
                          static_cast<uint64_t>(next[env::AgentIndex(a)]));
       const uint32_t visits = Visit(key, dry_run);
-      rewards[a] = static_cast<float>(R * shares[a] / std::sqrt(static_cast<double>(visits)));
+      out.agent_scale[i * n + a] = static_cast<float>(1.0 / std::sqrt(static_cast<double>(visits)));
     }
   }
   if (!dry_run) model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
 }
 
-void SfScorer::Impl::ScoreLocal(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_state_dim(with_id), K = batch.state_size;
   torch::Tensor inputs = torch::empty({2 * N * n, D}, torch::kFloat32);
@@ -253,24 +242,14 @@ void SfScorer::Impl::ScoreLocal(const TransitionBatch& batch, bool dry_run, cons
   const torch::Tensor psi = model.Psi(inputs);
   const torch::Tensor novelty = (psi.narrow(0, N * n, N * n) - psi.narrow(0, 0, N * n)).pow(2).sum(1).contiguous();
   const float* nov = novelty.data_ptr<float>();
-  const float beta = static_cast<float>(config.beta);
-  for (int64_t i = 0; i < N; ++i) {
-    float total = 0;
-    for (int a = 0; a < n; ++a) {
-      out.contributions[i * n + a] = nov[i * n + a];
-      out.agent_rewards[i * n + a] = beta * nov[i * n + a];
-      total += out.agent_rewards[i * n + a];
-    }
-    out.global_rewards[i] = total;
-    for (int a = 0; a < n; ++a) out.shares[i * n + a] = total > 0 ? out.agent_rewards[i * n + a] / total : 1.0f / n;
-  }
+  std::copy(nov, nov + N * n, out.local);
   if (!dry_run) {
     const torch::Tensor alive = Alive(batch).repeat_interleave(n);
     model.Train(inputs.narrow(0, 0, N * n), inputs.narrow(0, N * n, N * n), alive, sf.gamma);
   }
 }
 
-absl::StatusOr<std::unique_ptr<SfScorer>> SfScorer::Create(const env::Scenario& scenario,
+absl::StatusOr<std::unique_ptr<SfNovelty>> SfNovelty::Create(const env::Scenario& scenario,
                                                            const ScorerConfig& config, const SfConfig& sf) {
   if (sf.features < 1) return absl::InvalidArgumentError("sf features must be >= 1");
   for (int h : sf.hidden) {
@@ -281,24 +260,20 @@ absl::StatusOr<std::unique_ptr<SfScorer>> SfScorer::Create(const env::Scenario& 
   if (sf.target_update < 1) return absl::InvalidArgumentError("sf target update period must be >= 1");
   torch::set_num_threads(std::max(1, sf.threads));
   torch::manual_seed(config.seed);
-  return std::unique_ptr<SfScorer>(new SfScorer(std::make_unique<Impl>(scenario, config, sf)));
+  return std::unique_ptr<SfNovelty>(new SfNovelty(std::make_unique<Impl>(scenario, config, sf)));
 }
 
-SfScorer::SfScorer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-SfScorer::~SfScorer() = default;
+SfNovelty::SfNovelty(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+SfNovelty::~SfNovelty() = default;
 
-absl::Status SfScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
-  const int n = impl_->n;
-  if (impl_->config.credit == Credit::kNone) {
-    WriteNoCredit(batch, n, out);
-    return absl::OkStatus();
-  }
+absl::Status SfNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
+                                const NoveltyOutput& out) {
   absl::MutexLock lock(&impl_->mu);
   try {
-    if (impl_->config.credit == Credit::kIndependent) {
-      impl_->ScoreLocal(batch, dry_run, out);
+    if (credit == Credit::kIndependent) {
+      impl_->ComputeLocal(batch, dry_run, out);
     } else {
-      impl_->ScoreJoint(batch, dry_run, out);
+      impl_->ComputeJoint(batch, dry_run, out);
     }
     impl_->EndRequest(dry_run);
   } catch (const std::exception& e) {
@@ -307,18 +282,18 @@ absl::Status SfScorer::Score(const TransitionBatch& batch, bool dry_run, const S
   return absl::OkStatus();
 }
 
-void SfScorer::FillStats(v1::RewardStats* stats) const {
+void SfNovelty::FillStats(v1::RewardStats* stats) const {
   absl::MutexLock lock(&impl_->mu);
   stats->set_model_updates(impl_->requests);
   stats->set_distinct_keys(static_cast<int64_t>(impl_->visits.size()));
 }
 
-absl::Status SfScorer::Save(const std::string& path) const {
+absl::Status SfNovelty::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
   return SaveModels(path, impl_->tag, impl_->joint, impl_->local, "requests", impl_->requests);
 }
 
-absl::Status SfScorer::Load(const std::string& path) {
+absl::Status SfNovelty::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
@@ -327,7 +302,7 @@ absl::Status SfScorer::Load(const std::string& path) {
       [&] { return SfModel(impl.encoder.local_state_dim(with_id), impl.sf); }, "requests", &impl.requests);
 }
 
-absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
+absl::Status SfNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
                                         const std::vector<float>& bias) {
   absl::MutexLock lock(&impl_->mu);
   const bool is_local = net.rfind("local_", 0) == 0;
@@ -341,14 +316,14 @@ absl::Status SfScorer::SetLinearForTest(const std::string& net, int layer, const
   return absl::OkStatus();
 }
 
-std::vector<float> SfScorer::PhiForTest(const int32_t* state) const {
+std::vector<float> SfNovelty::PhiForTest(const int32_t* state) const {
   absl::MutexLock lock(&impl_->mu);
   torch::NoGradGuard no_grad;
   const torch::Tensor y = impl_->joint->phi->forward(impl_->EncodeForTest(state)).squeeze(0).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
 }
 
-std::vector<float> SfScorer::PsiForTest(const int32_t* state) const {
+std::vector<float> SfNovelty::PsiForTest(const int32_t* state) const {
   absl::MutexLock lock(&impl_->mu);
   const torch::Tensor y = impl_->joint->Psi(impl_->EncodeForTest(state)).squeeze(0).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());

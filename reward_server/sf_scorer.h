@@ -8,7 +8,7 @@
 #include "absl/status/statusor.h"
 #include "common/env.h"
 #include "reward_server/credit.h"
-#include "reward_server/scorer.h"
+#include "reward_server/novelty.h"
 
 namespace imca::reward {
 
@@ -21,26 +21,29 @@ struct SfConfig {
   int threads = 1;                       // LibTorch intra-op threads.
 };
 
-// Successor-feature control (paper eq. 7, 11-13; SPEC 4.3, 5):
+// Successor-feature control (paper eq. 7, 11-13; SPEC 4.3, 5), for CreditScorer:
 //   phi: a fixed random network of the joint state (JointInputEncoder, agent
 //   order); psi trained by TD, psi(S_t) -> phi(S_t) + gamma psi'(S_{t+1})
 //   (psi' = target copy; 0 after termination);
-//   R_i = beta ||psi(S_{t+1}) - psi(S_t)||^2.
-//   imca: d^a = ||psi(S_t with only agent a moved to s^a_{t+1}) - psi(S_t)||^2,
-//   p^a = softmax(d / tau), r_i^a = R_i p^a / sqrt(N_ep(s^a)), where N_ep
-//   counts agent a's visits to the cell it reached, in this episode, this one
-//   included (keyed by actor, episode id, agent and cell).
-//   independent: a second SF over each agent's own cell; shared: R_i each.
+//   joint: ||psi(S_{t+1}) - psi(S_t)||^2 (R_i = beta times it).
+//   imca contributions: d^a = ||psi(S_t with only agent a moved to s^a_{t+1})
+//   - psi(S_t)||^2 with scale 1 / sqrt(N_ep(s^a)), so r_i^a = R_i p^a /
+//   sqrt(N_ep(s^a)), where N_ep counts agent a's visits to the cell it
+//   reached, in this episode, this one included (keyed by actor, episode id,
+//   agent and cell).
+//   local (independent): a second SF over each agent's own cell.
 // A request is scored with psi as it was before it, then psi takes one Adam
 // step on the request's transitions. Thread-safe (one mutex).
-class SfScorer final : public Scorer {
+class SfNovelty final : public Novelty {
  public:
   // Errors: INVALID_ARGUMENT for bad config values.
-  static absl::StatusOr<std::unique_ptr<SfScorer>> Create(const env::Scenario& scenario,
-                                                          const ScorerConfig& config, const SfConfig& sf);
-  ~SfScorer() override;
+  static absl::StatusOr<std::unique_ptr<SfNovelty>> Create(const env::Scenario& scenario,
+                                                           const ScorerConfig& config, const SfConfig& sf);
+  ~SfNovelty() override;
 
-  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  bool Supports(Credit credit) const override { return true; }
+  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
+                       const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   // Models only: episodic visit counts are transient and start afresh.
   absl::Status Save(const std::string& path) const override;
@@ -56,7 +59,7 @@ class SfScorer final : public Scorer {
 
  private:
   struct Impl;
-  explicit SfScorer(std::unique_ptr<Impl> impl);
+  explicit SfNovelty(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -1,5 +1,6 @@
 // Successor-feature control with credit assignment (paper eq. 7, 11-13).
 #include "reward_server/sf_scorer.h"
+#include "reward_server/make_scorer.h"
 
 #include "reward_server/scorer_testing.h"
 
@@ -14,6 +15,8 @@
 
 namespace imca::reward {
 namespace {
+
+using ::imca::testing::Credited;
 
 constexpr int kN = 2;
 
@@ -31,17 +34,17 @@ class SfScorerTest : public ::testing::Test {
   void SetUp() override { Use("1..T2\n"); }
 
   // One env, T = transitions; cells are (agent 1, agent 2) before and after.
-  Scored Score(SfScorer& scorer, const std::vector<std::vector<int32_t>>& now,
+  Scored Score(Scorer& scorer, const std::vector<std::vector<int32_t>>& now,
                const std::vector<std::vector<int32_t>>& next, const std::vector<bool>& terminated, bool dry_run) {
     return ::imca::testing::ScoreSteps(scorer, {now, {}, {}, next, terminated}, dry_run);
   }
 
-  std::unique_ptr<SfScorer> Make(Credit credit, SfConfig sf = {}) {
+  std::unique_ptr<Credited<SfNovelty>> Make(Credit credit, SfConfig sf = {}) {
     ScorerConfig config;
     config.credit = credit;
-    auto scorer = SfScorer::Create(*scenario_, config, sf);
-    EXPECT_TRUE(scorer.ok()) << scorer.status();
-    return *std::move(scorer);
+    auto kind = SfNovelty::Create(*scenario_, config, sf);
+    EXPECT_TRUE(kind.ok()) << kind.status();
+    return std::make_unique<Credited<SfNovelty>>(*std::move(kind), config, scenario_->num_agents());
   }
 
   std::unique_ptr<env::Scenario> scenario_;
@@ -59,7 +62,7 @@ TEST_F(SfScorerTest, SharesAndEpisodicCountsMatchHandWorkedNumbers) {
     w[1 + c] = static_cast<float>(c);
     w[13 + 7 + c] = 2.0f * c;
   }
-  ASSERT_TRUE(scorer->SetLinearForTest("psi", 0, w, {0.0f, 0.0f}).ok());
+  ASSERT_TRUE(scorer->kind().SetLinearForTest("psi", 0, w, {0.0f, 0.0f}).ok());
   // Agent 1: 0 -> 1, agent 2: 4 -> 3, twice in one episode.
   const Scored r = Score(*scorer, {{0, 4}, {0, 4}}, {{1, 3}, {1, 3}}, {false, false}, /*dry_run=*/false);
   // psi(S_t) = (0, 8), psi(S_t+1) = (1, 6): R = 1 + 4 = 5.
@@ -90,10 +93,10 @@ TEST_F(SfScorerTest, PsiConvergesToAnalyticSuccessorFeaturesOnAChain) {
   std::vector<std::vector<float>> phi;
   for (int cell = 0; cell < 3; ++cell) {
     const std::vector<int32_t> state = {0, cell, 6, 0};
-    phi.push_back(scorer->PhiForTest(state.data()));
+    phi.push_back(scorer->kind().PhiForTest(state.data()));
   }
   const std::vector<int32_t> s0 = {0, 0, 6, 0};
-  const std::vector<float> psi = scorer->PsiForTest(s0.data());
+  const std::vector<float> psi = scorer->kind().PsiForTest(s0.data());
   double error = 0, norm = 0;
   for (size_t f = 0; f < psi.size(); ++f) {
     const double analytic = phi[0][f] + 0.9 * phi[1][f] + 0.81 * phi[2][f];
@@ -120,11 +123,12 @@ TEST_F(SfScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
   ScorerConfig config;
   config.credit = Credit::kImca;
   config.seed = 77;
-  auto restored = SfScorer::Create(*scenario_, config, SfConfig{});
-  ASSERT_TRUE(restored.ok());
-  ASSERT_TRUE((*restored)->Load(path).ok());
+  auto made = MakeScorer("sf", *scenario_, config);
+  ASSERT_TRUE(made.ok());
+  std::unique_ptr<CreditScorer> restored = *std::move(made);
+  ASSERT_TRUE(restored->Load(path).ok());
   const Scored a = Score(*scorer, {{2, 4}}, {{2, 3}}, {false}, true);
-  const Scored b = Score(**restored, {{2, 4}}, {{2, 3}}, {false}, true);
+  const Scored b = Score(*restored, {{2, 4}}, {{2, 3}}, {false}, true);
   EXPECT_EQ(a.global, b.global);
   EXPECT_EQ(a.contributions, b.contributions);
   auto other = Make(Credit::kShared);

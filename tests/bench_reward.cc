@@ -12,28 +12,19 @@
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/test_unrolls.h"
-#include "reward_server/count_scorer.h"
+#include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
-#include "reward_server/rnd_scorer.h"
-#include "reward_server/sf_scorer.h"
 
 namespace imca {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::unique_ptr<reward::Scorer> MakeScorer(const std::string& kind, const env::Scenario& scenario,
-                                           const reward::ScorerConfig& config) {
-  if (kind == "count") return std::make_unique<reward::CountScorer>(scenario, config);
-  if (kind == "rnd") return *reward::RndScorer::Create(scenario, config, reward::RndConfig{});
-  return *reward::SfScorer::Create(scenario, config, reward::SfConfig{});
-}
-
 // Median transitions/s of Score calls with `credit`.
 double Throughput(const std::string& kind, const env::Scenario& scenario, reward::Credit credit, int rounds) {
   reward::ScorerConfig config;
   config.credit = credit;
-  auto scorer = MakeScorer(kind, scenario, config);
+  std::unique_ptr<reward::Scorer> scorer = *reward::MakeScorer(kind, scenario, config);
   reward::RewardServiceImpl service(&scenario, scorer.get(), kind, config, "");
   int port = 0;
   auto server = StartServer("127.0.0.1:0", {&service}, &port);

@@ -27,7 +27,7 @@
 #include "common/test_unrolls.h"
 #include "common/vec_env.h"
 #include "learner/learner.h"
-#include "reward_server/count_scorer.h"
+#include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 
 namespace imca {
@@ -71,8 +71,8 @@ double BenchEnv(const env::Scenario& scenario, int rounds) {
 double BenchScore(const env::Scenario& scenario, int rounds) {
   reward::ScorerConfig config;
   config.credit = reward::Credit::kImca;
-  reward::CountScorer scorer(scenario, config);
-  reward::RewardServiceImpl service(&scenario, &scorer, "count", config, "");
+  std::unique_ptr<reward::Scorer> scorer = *reward::MakeScorer("count", scenario, config);
+  reward::RewardServiceImpl service(&scenario, scorer.get(), "count", config, "");
   int port = 0;
   auto server = StartServer("127.0.0.1:0", {&service}, &port);
   if (!server.ok()) return 0;
@@ -158,10 +158,10 @@ struct LearnerShape {
   bool separate_optimizers;
   bool concurrent_critic;
 };
-// ./imca train's defaults, and those before the learner ablation and the
-// concurrent critic (docs/benchmarks.md, "Sample efficiency against the
-// reference MAPPO").
-constexpr LearnerShape kDefaultShape{"", 1024, 16, 32, true, true};
+// ./imca train's defaults on coop_nav (the bench's scenario), and those
+// before the learner ablation and the concurrent critic (docs/benchmarks.md,
+// "Sample efficiency against the reference MAPPO").
+constexpr LearnerShape kDefaultShape{"", 2048, 32, 32, true, true};
 constexpr LearnerShape kV1Shape{"_v1", 8192, 64, 32, false, false};
 
 double BenchLearner(const env::Scenario& scenario, int rounds, int threads, const LearnerShape& shape) {

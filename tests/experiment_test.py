@@ -75,7 +75,7 @@ class ExperimentErrorsTest(unittest.TestCase):
                                capture_output=True, text=True, timeout=60)
             self.assertEqual(r.returncode, 2, r.stderr)
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
-            self.assertIn("lr 0.123 where ./imca train now uses 0.0005", r.stderr)
+            self.assertIn("lr 0.123 where ./imca train now uses 0.001", r.stderr)
             self.assertIn("another --out", r.stderr)
 
     def test_unreadable_grid_names_the_flag(self):

@@ -52,16 +52,19 @@ class LauncherErrorsTest(unittest.TestCase):
 
 class LauncherDefaultsTest(unittest.TestCase):
     def test_defaults_are_the_ablation_winners(self):
-        args = launch.parse_args([])
-        self.assertEqual((args.sync, args.batch_steps, args.unroll_length, args.separate_optimizers),
-                         (True, 1024, 16, True))
+        args = launch.parse_args([])  # coop_nav.
+        self.assertEqual((args.sync, args.batch_steps, args.unroll_length, args.separate_optimizers, args.lr),
+                         (True, 2048, 32, True, 1e-3))
         self.assertEqual(launch.sync_unrolls(args), 1)
         flags = launch.learner_option_flags(args)
         self.assertIn("--synchronous=true", flags)
         self.assertIn("--separate_optimizers=true", flags)
-        self.assertFalse(launch.parse_args(["--scenario", "predator_prey"]).separate_optimizers)
+        pp = launch.parse_args(["--scenario", "predator_prey"])
+        self.assertEqual((pp.batch_steps, pp.unroll_length, pp.separate_optimizers, pp.lr), (1024, 16, False, 5e-4))
+        # A flag given wins over the scenario's default.
         self.assertTrue(launch.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])
                         .separate_optimizers)
+        self.assertEqual(launch.parse_args(["--lr", "2e-4"]).lr, 2e-4)
         old = launch.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
                                  "--unroll-length", "64"])
         self.assertEqual(launch.sync_unrolls(old), 0)
@@ -81,6 +84,21 @@ class LauncherDefaultsTest(unittest.TestCase):
             self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (True, True, 2048))
 
 
+class StepsToSuccessTest(unittest.TestCase):
+    def test_a_rate_over_a_part_filled_window_does_not_count(self):
+        # One early success is a rate of 100% over one episode: not "reached".
+        rows = [{"env_steps": "1024", "success_rate": "1.0", "success_episodes": "1"},
+                {"env_steps": "2048", "success_rate": "0.5", "success_episodes": "200"},
+                {"env_steps": "3072", "success_rate": "0.95", "success_episodes": "200"}]
+        self.assertEqual(launch.steps_to(rows, 0.9), 3072)
+        self.assertIsNone(launch.steps_to(rows[:2], 0.9))
+
+    def test_runs_without_the_window_column_read_as_before(self):
+        rows = [{"env_steps": "1024", "train_success_rate": "0.2"},
+                {"env_steps": "2048", "train_success_rate": "0.9"}]
+        self.assertEqual(launch.steps_to(rows, 0.9, "train_success_rate"), 2048)
+
+
 class LauncherRunTest(unittest.TestCase):
     def test_short_run_leaves_a_complete_run_folder(self):
         with tempfile.TemporaryDirectory() as tmp:
@@ -93,8 +111,13 @@ class LauncherRunTest(unittest.TestCase):
             with open(os.path.join(out, "metrics.csv")) as f:
                 rows = list(csv.DictReader(f))
             self.assertGreaterEqual(len(rows), 2)
-            for column in ["env_steps", "wall_seconds", "success_rate", "episode_return", "intrinsic_reward"]:
+            for column in ["env_steps", "wall_seconds", "success_rate", "episode_return", "intrinsic_reward",
+                           "success_episodes", "train_success_episodes"]:
                 self.assertIn(column, rows[0])
+            # The windows fill up as episodes end, never beyond their size.
+            fills = [int(r["train_success_episodes"]) for r in rows]
+            self.assertEqual(fills, sorted(fills))
+            self.assertLessEqual(fills[-1], launch.SUCCESS_WINDOW)
             self.assertGreater(max(float(r["intrinsic_reward"]) for r in rows), 0.0)
             with open(os.path.join(out, "summary.json")) as f:
                 summary = json.load(f)

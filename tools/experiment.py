@@ -77,7 +77,7 @@ PRESETS = {
 # Presets write to results/<preset>-<edition>: the learner's defaults changed
 # with edition v2 (docs/benchmarks.md, "Sample efficiency against the
 # reference MAPPO"), and results/<preset> holds the v1 runs (docs/results.md).
-PRESET_EDITION = "v2"
+PRESET_EDITION = "v3"
 
 
 class ExperimentError(Exception):

@@ -1,0 +1,72 @@
+#ifndef IMCA_REWARD_SERVER_INFLUENCE_SCORER_H_
+#define IMCA_REWARD_SERVER_INFLUENCE_SCORER_H_
+
+#include <string>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/synchronization/mutex.h"
+#include "common/env.h"
+#include "reward_server/count_table.h"
+#include "reward_server/credit.h"
+#include "reward_server/novelty.h"
+
+namespace imca::reward {
+
+// EITI and EDTI (Wang et al. 2020) from the count tables of the released
+// code (BASELINES.md 1.2-1.5; docs/baselines.md), on the agents' cells only:
+// for every ordered pair (i influences j),
+//   c_{i->j} = 1 - p(s'_j | s_j, a_j) / p(s'_j | s_i, a_i, s_j, a_j)
+// (or, with log_form, log p(s'_j | s_i, a_i, s_j, a_j) - log p(s'_j | s_j, a_j)),
+// each p a ratio of counts N(s_j, a_j, s'_j) / N(s_j, a_j) and
+// N(s_i, a_i, s_j, a_j, s'_j) / N(s_i, a_i, s_j, a_j). Per time step of a
+// request, all its envs' transitions are added before any is read, and a
+// transition out of a reset state (t = 0) is neither counted nor rewarded, as
+// EDTI's vec env does. The decentralised curiosity eta / sqrt(N_i(s'_i) + 1)
+// reads agent i's cell count before the step's increments.
+// Local novelty (credit independent only; the per-agent bonus is the method):
+//   eiti: eta / sqrt(N_i(s'_i) + 1) + beta_t * sum_{j != i} c_{i->j};
+//   edti: eta / sqrt(N_i(s'_i) + 1), with every c_{i->j} returned as
+//         influences for the learner's value-of-interaction term.
+// Thread-safe (one mutex).
+struct InfluenceConfig {
+  bool edti = false;       // false: EITI.
+  double eta = 10.0;       // Curiosity coefficient (EDTI's README: gamma_dec = 10 with success +1000).
+  double beta_t = 10.0;    // EITI's coefficient of the summed influence (not published; docs/baselines.md).
+  bool log_form = false;   // The paper's log ratio instead of the released code's 1 - 1/x.
+};
+
+class InfluenceNovelty final : public Novelty {
+ public:
+  InfluenceNovelty(const env::Scenario& scenario, const ScorerConfig& config, const InfluenceConfig& influence);
+
+  bool Supports(Credit credit) const override { return credit == Credit::kIndependent; }
+  bool ReturnsInfluences() const override { return influence_.edti; }
+  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
+                       const NoveltyOutput& out) override;
+  void FillStats(v1::RewardStats* stats) const override;
+  absl::Status Save(const std::string& path) const override;
+  absl::Status Load(const std::string& path) override;
+
+  // The influence c_{i->j} of the current tables for one transition, as if
+  // it had been added (tests).
+  float InfluenceForTest(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j) const;
+
+ private:
+  float Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
+                  const absl::flat_hash_map<uint64_t, uint32_t>& pending) const ABSL_SHARED_LOCKS_REQUIRED(mu_);
+  std::string ConfigTag() const;
+
+  const std::string scenario_tag_;
+  const int n_;
+  const int k_;
+  const InfluenceConfig influence_;
+
+  mutable absl::Mutex save_mu_;  // Taken before mu_.
+  mutable absl::Mutex mu_;
+  CountTable transitions_ ABSL_GUARDED_BY(mu_);  // The four tables of every pair, by key tag.
+  CountTable cells_ ABSL_GUARDED_BY(mu_);        // N_i(s_i) of the curiosity.
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_INFLUENCE_SCORER_H_

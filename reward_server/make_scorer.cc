@@ -1,0 +1,49 @@
+#include "reward_server/make_scorer.h"
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "reward_server/count_scorer.h"
+
+namespace imca::reward {
+
+std::vector<std::string> RewardKinds() { return {"count", "rnd", "sf", "eiti", "edti"}; }
+
+absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, const env::Scenario& scenario,
+                                                     const ScorerConfig& config, const RewardKindConfig& kinds) {
+  if (kind == "count") return std::make_unique<CountNovelty>(scenario, config);
+  if (kind == "rnd") {
+    auto rnd = RndNovelty::Create(scenario, config, kinds.rnd);
+    if (!rnd.ok()) return rnd.status();
+    return std::unique_ptr<Novelty>(*std::move(rnd));
+  }
+  if (kind == "sf") {
+    auto sf = SfNovelty::Create(scenario, config, kinds.sf);
+    if (!sf.ok()) return sf.status();
+    return std::unique_ptr<Novelty>(*std::move(sf));
+  }
+  if (kind == "eiti" || kind == "edti") {
+    InfluenceConfig influence = kinds.influence;
+    influence.edti = kind == "edti";
+    if (!(influence.eta >= 0)) return absl::InvalidArgumentError("eta must be >= 0");
+    if (!(influence.beta_t >= 0)) return absl::InvalidArgumentError("beta_t must be >= 0");
+    return std::make_unique<InfluenceNovelty>(scenario, config, influence);
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("reward '", kind, "' is not one of ", absl::StrJoin(RewardKinds(), "|")));
+}
+
+absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind, const env::Scenario& scenario,
+                                                         const ScorerConfig& config, const RewardKindConfig& kinds) {
+  auto novelty = MakeNovelty(kind, scenario, config, kinds);
+  if (!novelty.ok()) return novelty.status();
+  if (config.credit != Credit::kNone && !(*novelty)->Supports(config.credit)) {
+    return absl::InvalidArgumentError(absl::StrCat("reward '", kind, "' does not support credit '",
+                                                   CreditName(config.credit), "'",
+                                                   kind == "eiti" || kind == "edti"
+                                                       ? " (its per-agent bonus is the method: use independent)"
+                                                       : ""));
+  }
+  return std::make_unique<CreditScorer>(*std::move(novelty), config, scenario.num_agents());
+}
+
+}  // namespace imca::reward

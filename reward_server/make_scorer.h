@@ -1,0 +1,41 @@
+#ifndef IMCA_REWARD_SERVER_MAKE_SCORER_H_
+#define IMCA_REWARD_SERVER_MAKE_SCORER_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "common/env.h"
+#include "reward_server/credit.h"
+#include "reward_server/influence_scorer.h"
+#include "reward_server/novelty.h"
+#include "reward_server/rnd_scorer.h"
+#include "reward_server/sf_scorer.h"
+
+namespace imca::reward {
+
+// The kind-specific settings of every reward kind; each kind reads its own.
+struct RewardKindConfig {
+  RndConfig rnd;
+  SfConfig sf;
+  InfluenceConfig influence;  // eiti, edti (its `edti` is set from the kind).
+};
+
+// The reward kinds MakeScorer knows, in the order docs list them.
+std::vector<std::string> RewardKinds();
+
+// The Novelty of reward kind `kind` for `scenario`. Errors: INVALID_ARGUMENT
+// for an unknown kind (naming the known ones) or bad kind settings.
+absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, const env::Scenario& scenario,
+                                                     const ScorerConfig& config, const RewardKindConfig& kinds);
+
+// That novelty under the credit rule of config.credit. Errors: those of
+// MakeNovelty, and INVALID_ARGUMENT if the kind cannot serve the credit mode.
+absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind, const env::Scenario& scenario,
+                                                         const ScorerConfig& config,
+                                                         const RewardKindConfig& kinds = {});
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_MAKE_SCORER_H_
