@@ -171,6 +171,7 @@ absl::Status Actor::Score(v1::Unroll* unroll) {
   *unroll->mutable_credit_shares() = std::move(*response.mutable_shares());
   *unroll->mutable_global_rewards() = std::move(*response.mutable_global_rewards());
   *unroll->mutable_contributions() = std::move(*response.mutable_contributions());
+  *unroll->mutable_influences() = std::move(*response.mutable_influences());
   return absl::OkStatus();
 }
 

@@ -133,6 +133,16 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
       IMCA_RETURN_IF_ERROR(CheckFinite(u.contributions(), "contributions"));
     }
   }
+  if (needs.influences) {
+    if (u.influences_size() == 0) {
+      return absl::InvalidArgumentError(
+          "unroll.influences is empty: an EDTI learner needs the reward server's influences (--reward edti)");
+    }
+    IMCA_RETURN_IF_ERROR(CheckSize(u.influences(), "influences", transitions * n * n));
+    IMCA_RETURN_IF_ERROR(CheckFinite(u.influences(), "influences"));
+  } else if (u.influences_size() != 0) {
+    IMCA_RETURN_IF_ERROR(CheckSize(u.influences(), "influences", transitions * n * n));
+  }
   return absl::OkStatus();
 }
 

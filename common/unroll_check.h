@@ -11,6 +11,7 @@ namespace imca {
 struct UnrollNeeds {
   bool rewards = false;            // rewards, terminated, truncated, log-probs.
   bool intrinsic_rewards = false;  // intrinsic_rewards (learner side).
+  bool influences = false;         // influences [T][E][n][n] (an EDTI learner).
 };
 
 // Largest number of transitions (T*E) one message may carry.

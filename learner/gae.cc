@@ -34,4 +34,25 @@ void ComputeGae(int64_t T, int64_t M, const float* rewards, const float* values,
   }
 }
 
+void EdtiInteractionRewards(int64_t T, int64_t E, int n, const float* influences, const float* v_ext,
+                            const float* v_int, const float* r_ext, const float* r_int, float gamma,
+                            const EdtiCoefficients& coef, float* voi) {
+  const int64_t M = E * n;
+  for (int64_t t = 0; t < T; ++t) {
+    for (int64_t e = 0; e < E; ++e) {
+      const int64_t row = t * M + e * n, next = (t + 1) * M + e * n;
+      for (int i = 0; i < n; ++i) {
+        double transition = 0, partner = 0;
+        for (int j = 0; j < n; ++j) {
+          if (j == i) continue;
+          const float c = influences[(row + i) * n + j];
+          transition += c * (coef.tv_ext * v_ext[next + j] + coef.tv_int * v_int[next + j]);
+          partner += coef.partner_ext * r_ext[row + j] + coef.partner_int * r_int[row + j];
+        }
+        voi[row + i] = static_cast<float>(coef.tv * gamma * transition + coef.partner * partner);
+      }
+    }
+  }
+}
+
 }  // namespace imca::learner

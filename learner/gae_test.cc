@@ -181,5 +181,44 @@ TEST(GaeTest, LambdaOneMatchesBruteForceReturnsAcrossEpisodes) {
   EXPECT_THAT(r.returns, Pointwise(::testing::FloatNear(1e-5f), expected));
 }
 
+
+// EDTI's value of interaction with set values, worked by hand: 2 agents,
+// c_{0->1} = 0.5, c_{1->0} = -0.25 (agent 1 was less predictable given agent 0).
+TEST(EdtiInteractionTest, MatchesTheReleasedRunnersSumWithSetValues) {
+  const float influences[4] = {0.0f, 0.5f, -0.25f, 0.0f};  // [i][j]
+  const float v_ext[4] = {-1.0f, -1.0f, 100.0f, 200.0f};    // [t+1][agent]: row 1 is read.
+  const float v_int[4] = {-1.0f, -1.0f, 3.0f, 5.0f};
+  const float r_ext[2] = {0.0f, 1000.0f};
+  const float r_int[2] = {10.0f, 7.0f};
+  float voi[2];
+  EdtiInteractionRewards(1, 1, 2, influences, v_ext, v_int, r_ext, r_int, 0.99f, EdtiCoefficients{}, voi);
+  // 0.99 * 0.5 * (0.1 * 200 + 1 * 5) + (0.1 * 1000 + 0.1 * 7)
+  EXPECT_NEAR(voi[0], 113.075f, 1e-4f);
+  // 0.99 * -0.25 * (0.1 * 100 + 1 * 3) + (0.1 * 0 + 0.1 * 10)
+  EXPECT_NEAR(voi[1], -2.2175f, 1e-5f);
+  // Without the partner term only the influence-weighted values remain.
+  EdtiCoefficients transition_only;
+  transition_only.partner = 0.0f;
+  EdtiInteractionRewards(1, 1, 2, influences, v_ext, v_int, r_ext, r_int, 0.99f, transition_only, voi);
+  EXPECT_NEAR(voi[0], 12.375f, 1e-5f);
+}
+
+TEST(EdtiInteractionTest, SumsOverEveryOtherAgentAndStepsAndEnvs) {
+  // T = 2, E = 1, n = 3; every influence 1, values V_ext_j = j, V_int = 0, no rewards.
+  const int n = 3;
+  std::vector<float> influences(2 * n * n, 1.0f), v_ext(3 * n), v_int(3 * n, 0.0f), zeros(2 * n, 0.0f), voi(2 * n);
+  for (int t = 0; t < 3; ++t) {
+    for (int j = 0; j < n; ++j) v_ext[t * n + j] = static_cast<float>(j + 10 * t);
+  }
+  EdtiCoefficients coef;
+  coef.tv_ext = 1.0f;
+  EdtiInteractionRewards(2, 1, n, influences.data(), v_ext.data(), v_int.data(), zeros.data(), zeros.data(), 1.0f,
+                         coef, voi.data());
+  // Agent i at step t: sum over j != i of V_ext_j(t+1) = (3 * 10(t+1) + 0 + 1 + 2) - (10(t+1) + i).
+  for (int t = 0; t < 2; ++t) {
+    for (int i = 0; i < n; ++i) EXPECT_FLOAT_EQ(voi[t * n + i], 2 * 10.0f * (t + 1) + 3.0f - i) << t << " " << i;
+  }
+}
+
 }  // namespace
 }  // namespace imca::learner

@@ -23,7 +23,7 @@ constexpr char kMetricsHeader[] =
     "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
     "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,"
     "ms_wait,ms_featurise,ms_values,ms_gae,ms_copy,ms_prepare,ms_forward,ms_backward,ms_optimizer,ms_publish,"
-    "global_reward,contribution_abs,success_episodes,train_success_episodes";
+    "global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -63,6 +63,11 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
   if (config.batch_steps < 1) return absl::InvalidArgumentError("batch_steps must be >= 1");
   if (config.max_policy_lag < 0) return absl::InvalidArgumentError("max_policy_lag must be >= 0");
   if (config.queue_capacity < 1) return absl::InvalidArgumentError("queue_capacity must be >= 1");
+  if (config.edti != (config.ppo.value_heads == 3)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "value_heads is ", config.ppo.value_heads,
+        config.edti ? ": edti needs 3 (extrinsic, intrinsic, interaction)" : ": 3 heads are for edti only"));
+  }
   if (!(config.gamma > 0 && config.gamma <= 1) || !(config.gamma_int > 0 && config.gamma_int <= 1) ||
       !(config.lambda >= 0 && config.lambda <= 1)) {
     return absl::InvalidArgumentError("gamma, gamma_int must be in (0,1] and lambda in [0,1]");
@@ -109,7 +114,7 @@ int64_t Learner::IterationBytes(int64_t steps) const {
 }
 
 absl::Status Learner::Push(v1::Unroll unroll) {
-  absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true});
+  absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true, config_.edti});
   if (valid.ok()) {
     // A batch gathers unrolls until it holds batch_steps, so the largest is
     // batch_steps - 1 steps plus this unroll.
@@ -283,6 +288,8 @@ absl::Status Learner::Run() {
     // Each unroll's values and advantages are computed as it arrives, while
     // the actors still produce the rest of the batch.
     phases_ = Phases();
+    voi_sum_ = 0;
+    voi_count_ = 0;
     batch_.Clear();
     PpoBatch& batch = batch_;
     std::vector<v1::Unroll> unrolls;
@@ -346,8 +353,11 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
   phases_.featurise += q.featurise_seconds;
   // Critic inputs of states [T+1][E][n], featurised by Push.
   const std::vector<float>& inputs = q.critic_inputs;
+  const bool edti = config_.edti;
   std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
-  IMCA_RETURN_IF_ERROR(trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data()));
+  std::vector<float> v_voi(edti ? (T + 1) * M : 0), f_voi(edti ? B : 0);
+  IMCA_RETURN_IF_ERROR(
+      trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data(), edti ? v_voi.data() : nullptr));
   // GAE reads final values only at truncated steps: evaluate just those
   // reached states (a few per unroll, not all T*E of them).
   std::vector<int64_t> truncated_rows;
@@ -356,15 +366,17 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
   }
   if (!truncated_rows.empty()) {
     const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
-    std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows);
+    std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows), final_voi(rows);
     for (size_t i = 0; i < truncated_rows.size(); ++i) {
       CriticInputsOf(u.next_states().data() + truncated_rows[i] * k, nullptr, &final_inputs[i * n * critic_dim]);
     }
-    IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data()));
+    IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data(),
+                                          edti ? final_voi.data() : nullptr));
     for (size_t i = 0; i < truncated_rows.size(); ++i) {
       for (int a = 0; a < n; ++a) {
         f_ext[truncated_rows[i] * n + a] = final_ext[i * n + a];
         f_int[truncated_rows[i] * n + a] = final_int[i * n + a];
+        if (edti) f_voi[truncated_rows[i] * n + a] = final_voi[i * n + a];
       }
     }
   }
@@ -392,6 +404,19 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
     ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
                truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
   }
+  std::vector<float> adv_voi(edti ? B : 0), ret_voi(edti ? B : 0);
+  if (edti) {
+    // EDTI's value of interaction, from the values of the influenced agents
+    // at the next state (all heads, one GAE of its own with the third head).
+    std::vector<float> voi(B);
+    EdtiInteractionRewards(T, E, n, u.influences().data(), v_ext.data(), v_int.data(), u.rewards().data(),
+                           u.intrinsic_rewards().data(), static_cast<float>(config_.gamma),
+                           config_.edti_coefficients, voi.data());
+    ComputeGae(T, M, voi.data(), v_voi.data(), f_voi.data(), terminated.get(), truncated.get(), config_.gamma,
+               config_.lambda, adv_voi.data(), ret_voi.data());
+    for (int64_t i = 0; i < B; ++i) voi_sum_ += voi[i];
+    voi_count_ += B;
+  }
   phases_.gae += Lap(lap);
 
   batch->size += B;
@@ -401,10 +426,12 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
   batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
                                     u.behaviour_log_probs().end());
   for (int64_t i = 0; i < B; ++i) {
-    batch->advantages.push_back(adv_ext[i] + static_cast<float>(config_.intrinsic_coef) * adv_int[i]);
+    batch->advantages.push_back(adv_ext[i] + static_cast<float>(config_.intrinsic_coef) * adv_int[i] +
+                                (edti ? adv_voi[i] : 0.0f));
   }
   batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
   batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
+  batch->returns_voi.insert(batch->returns_voi.end(), ret_voi.begin(), ret_voi.end());
   phases_.copy += Lap(lap);
   return absl::OkStatus();
 }
@@ -511,8 +538,8 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditSta
                          stats.seconds_optimizer, phases_.publish}) {
     metrics_ << absl::StrFormat(",%.2f", 1e3 * seconds);
   }
-  metrics_ << absl::StrFormat(",%.6g,%.6g,%d,%d", credit.global_reward, credit.contribution_abs, eval_episodes,
-                              train_episodes);
+  metrics_ << absl::StrFormat(",%.6g,%.6g,%d,%d,%.6g", credit.global_reward, credit.contribution_abs, eval_episodes,
+                              train_episodes, voi_count_ > 0 ? voi_sum_ / voi_count_ : 0.0);
   for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
   metrics_ << "\n";
   metrics_.flush();

@@ -20,6 +20,7 @@
 #include "common/featurizer.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
+#include "learner/gae.h"
 #include "learner/ppo_trainer.h"
 
 namespace imca::learner {
@@ -54,6 +55,13 @@ struct LearnerConfig {
   // it (both as "stale ..."). Actors should act a fixed number of unrolls
   // per version and then wait for the next (actor --sync_unrolls).
   bool synchronous = false;
+  // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
+  // value of interaction (EdtiInteractionRewards, learner/gae.h, from the
+  // unroll's influences and the critic's values of the influenced agents),
+  // learned by a third value head (ppo.value_heads must be 3). Push refuses
+  // unrolls without influences (INVALID_ARGUMENT naming unroll.influences).
+  bool edti = false;
+  EdtiCoefficients edti_coefficients;
   double gamma = 0.99;            // Extrinsic discount.
   double gamma_int = 0.99;        // Intrinsic discount.
   double lambda = 0.95;           // GAE lambda (both heads).
@@ -182,6 +190,9 @@ class Learner {
     double wait = 0, featurise = 0, values = 0, gae = 0, copy = 0, publish = 0;
   };
   Phases phases_;
+  // EDTI's value-of-interaction rewards of the current iteration (metrics).
+  double voi_sum_ = 0;
+  int64_t voi_count_ = 0;
   PpoBatch batch_;                       // Training thread only; reused every iteration.
   double wall_offset_ = 0;               // Seconds of earlier runs (resume).
 

@@ -172,8 +172,48 @@ TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
   ASSERT_TRUE(std::getline(metrics, header));
   ASSERT_TRUE(std::getline(metrics, row));
   EXPECT_THAT(header,
-              HasSubstr(",global_reward,contribution_abs,success_episodes,train_success_episodes,share_1,share_2"));
+              HasSubstr(",global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward,share_1,"
+                        "share_2"));
   EXPECT_EQ(std::count(header.begin(), header.end(), ','), std::count(row.begin(), row.end(), ','));
+}
+
+TEST_F(LearnerTest, EdtiNeedsInfluencesAndTrainsItsInteractionHead) {
+  config_.budget_steps = 2 * 256;
+  config_.edti = true;
+  auto two_heads = Learner::Create(scenario_.get(), config_);
+  ASSERT_FALSE(two_heads.ok());
+  EXPECT_THAT(two_heads.status().message(), HasSubstr("edti needs 3"));
+  config_.ppo.value_heads = 3;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  const int n = scenario_->num_agents();
+  absl::Status missing = l->Push(Unroll(0, 1));
+  EXPECT_EQ(missing.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(missing.message(), HasSubstr("unroll.influences is empty"));
+  auto with_influences = [&](int64_t version, uint64_t seed) {
+    v1::Unroll u = Unroll(version, seed);
+    const int64_t size = int64_t{u.length()} * u.num_envs() * n * n;
+    for (int64_t i = 0; i < size; ++i) u.add_influences((i % (n + 1)) == 0 ? 0.0f : 0.25f);  // Diagonal 0.
+    return u;
+  };
+  v1::Unroll short_one = with_influences(0, 2);
+  short_one.mutable_influences()->RemoveLast();
+  EXPECT_THAT(l->Push(short_one).message(), HasSubstr("unroll.influences"));
+  ASSERT_TRUE(l->Push(with_influences(0, 3)).ok());
+  ASSERT_TRUE(l->Push(with_influences(0, 4)).ok());  // Lag 1 by the time it trains: allowed.
+  ASSERT_TRUE(l->Run().ok());
+  EXPECT_EQ(l->Status().env_steps(), 2 * 256);
+  // The interaction rewards reach metrics.csv: the partner-reward term alone
+  // is 0.1 * the partner's curiosity here, so the mean is positive.
+  std::ifstream metrics(run_dir_ + "/metrics.csv");
+  std::string header, row;
+  ASSERT_TRUE(std::getline(metrics, header));
+  ASSERT_TRUE(std::getline(metrics, row));
+  const std::vector<std::string> names = absl::StrSplit(header, ',');
+  const int voi = std::find(names.begin(), names.end(), "voi_reward") - names.begin();
+  ASSERT_LT(voi, static_cast<int>(names.size()));
+  EXPECT_NE(std::stod(std::vector<std::string>(absl::StrSplit(row, ','))[voi]), 0.0);
 }
 
 TEST_F(LearnerTest, SynchronousTrainsOnlyOnThePolicyItStartsFrom) {

@@ -48,7 +48,17 @@ ABSL_FLAG(bool, layer_norm, kDefaults.ppo.layer_norm,
 ABSL_FLAG(bool, separate_optimizers, kDefaults.ppo.separate_optimizers,
           "one Adam (and grad-norm clip) for the actor, one for the critic");
 ABSL_FLAG(int, value_heads, kDefaults.ppo.value_heads,
-          "2: extrinsic and intrinsic value heads; 1: one head on extrinsic + intrinsic_coef * intrinsic");
+          "2: extrinsic and intrinsic value heads; 1: one head on extrinsic + intrinsic_coef * intrinsic "
+          "(3: with --edti)");
+ABSL_FLAG(bool, edti, false,
+          "EDTI's value of interaction from the unrolls' influences (reward server --reward edti); the critic "
+          "gets a third head (--value_heads is then 3); docs/baselines.md");
+ABSL_FLAG(double, edti_tv, 1.0, "edti: coefficient of the transition term (EDTI's gamma_coor_tv)");
+ABSL_FLAG(double, edti_tv_ext, 0.1, "edti: weight of the partner's extrinsic value (gamma_coor_tv_e)");
+ABSL_FLAG(double, edti_tv_int, 1.0, "edti: weight of the partner's curiosity value (gamma_coor_tv_c)");
+ABSL_FLAG(double, edti_partner, 1.0, "edti: coefficient of the partner-reward term (gamma_coor_r)");
+ABSL_FLAG(double, edti_partner_ext, 0.1, "edti: weight of the partner's extrinsic reward (gamma_coor_r_e)");
+ABSL_FLAG(double, edti_partner_int, 0.1, "edti: weight of the partner's curiosity reward (gamma_coor_r_c)");
 ABSL_FLAG(std::string, critic_input, imca::learner::CriticInputName(kDefaults.critic_input),
           "the centralised critic's input besides the agent id: state (global state) or joint_obs "
           "(all agents' observations)");
@@ -109,6 +119,17 @@ int main(int argc, char** argv) {
   config.ppo.layer_norm = absl::GetFlag(FLAGS_layer_norm);
   config.ppo.separate_optimizers = absl::GetFlag(FLAGS_separate_optimizers);
   config.ppo.value_heads = absl::GetFlag(FLAGS_value_heads);
+  config.edti = absl::GetFlag(FLAGS_edti);
+  if (config.edti) {
+    if (config.ppo.value_heads == 1) return Fail("--value_heads 1 cannot be used with --edti (it needs 3)");
+    config.ppo.value_heads = 3;
+  }
+  config.edti_coefficients.tv = static_cast<float>(absl::GetFlag(FLAGS_edti_tv));
+  config.edti_coefficients.tv_ext = static_cast<float>(absl::GetFlag(FLAGS_edti_tv_ext));
+  config.edti_coefficients.tv_int = static_cast<float>(absl::GetFlag(FLAGS_edti_tv_int));
+  config.edti_coefficients.partner = static_cast<float>(absl::GetFlag(FLAGS_edti_partner));
+  config.edti_coefficients.partner_ext = static_cast<float>(absl::GetFlag(FLAGS_edti_partner_ext));
+  config.edti_coefficients.partner_int = static_cast<float>(absl::GetFlag(FLAGS_edti_partner_int));
   config.ppo.hidden_gain = absl::GetFlag(FLAGS_hidden_gain);
   config.ppo.value_clip = absl::GetFlag(FLAGS_value_clip);
   config.ppo.huber_delta = absl::GetFlag(FLAGS_huber_delta);

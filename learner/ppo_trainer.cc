@@ -460,6 +460,7 @@ struct PpoTrainer::Impl {
   Model model_;
   RunningMeanVar ext_norm_;  // Returns of the extrinsic value head.
   RunningMeanVar int_norm_;  // Returns of the intrinsic value head.
+  RunningMeanVar voi_norm_;  // Returns of the interaction head (value_heads 3).
   at::Generator generator_;  // Minibatch shuffling only; saved in checkpoints.
   std::unique_ptr<SideThread> critic_thread_;  // With config.concurrent_critic.
 };
@@ -479,6 +480,7 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
   IMCA_RETURN_IF_ERROR(CheckSize("advantages", batch.advantages.size(), b));
   IMCA_RETURN_IF_ERROR(CheckSize("returns_ext", batch.returns_ext.size(), b));
   IMCA_RETURN_IF_ERROR(CheckSize("returns_int", batch.returns_int.size(), b));
+  if (config_.value_heads == 3) IMCA_RETURN_IF_ERROR(CheckSize("returns_voi", batch.returns_voi.size(), b));
   for (int64_t i = 0; i < b; ++i) {
     const int32_t a = batch.actions[i];
     if (a < 0 || a >= num_actions_) {
@@ -492,6 +494,7 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
   IMCA_RETURN_IF_ERROR(CheckFinite("advantages", batch.advantages));
   IMCA_RETURN_IF_ERROR(CheckFinite("returns_ext", batch.returns_ext));
   IMCA_RETURN_IF_ERROR(CheckFinite("returns_int", batch.returns_int));
+  if (config_.value_heads == 3) IMCA_RETURN_IF_ERROR(CheckFinite("returns_voi", batch.returns_voi));
   for (int64_t i = 0; i < b; ++i) {
     if (batch.behaviour_log_probs[i] > kMaxLogProb) {
       return absl::InvalidArgumentError(absl::StrCat("batch.behaviour_log_probs[", i,
@@ -515,7 +518,12 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
                      .to(torch::kInt64);
   data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});
   data.advantages = NormaliseAdvantages(CopyFloats(batch.advantages, {b}));
-  if (config_.value_heads == 2) {
+  if (config_.value_heads == 3) {
+    data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
+                                       NormaliseReturns(batch.returns_int, int_norm_),
+                                       NormaliseReturns(batch.returns_voi, voi_norm_)},
+                                      /*dim=*/1);
+  } else if (config_.value_heads == 2) {
     data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
                                        NormaliseReturns(batch.returns_int, int_norm_)},
                                       /*dim=*/1);
@@ -538,7 +546,8 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
 absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
   Clock::time_point lap = Clock::now();
   ext_norm_.Update(batch.returns_ext);
-  if (config_.value_heads == 2) int_norm_.Update(batch.returns_int);
+  if (config_.value_heads >= 2) int_norm_.Update(batch.returns_int);
+  if (config_.value_heads == 3) voi_norm_.Update(batch.returns_voi);
   const TrainData data = MakeTrainData(batch);
   const int64_t b = batch.size;
   // With fewer samples than minibatches, every minibatch holds one sample.
@@ -701,6 +710,7 @@ void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   }
   archive.write("value_norm_ext", ext_norm_.ToTensor());
   archive.write("value_norm_int", int_norm_.ToTensor());
+  if (config_.value_heads == 3) archive.write("value_norm_voi", voi_norm_.ToTensor());
   archive.write("generator", generator_.get_state());
 }
 
@@ -759,12 +769,19 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
                         RunningMeanVar::FromTensor(ext_tensor, "value_norm_ext"));
   IMCA_ASSIGN_OR_RETURN(RunningMeanVar int_norm,
                         RunningMeanVar::FromTensor(int_tensor, "value_norm_int"));
+  RunningMeanVar voi_norm = voi_norm_;
+  if (config_.value_heads == 3) {
+    torch::Tensor voi_tensor;
+    archive.read("value_norm_voi", voi_tensor);
+    IMCA_ASSIGN_OR_RETURN(voi_norm, RunningMeanVar::FromTensor(voi_tensor, "value_norm_voi"));
+  }
   at::Generator generator = at::detail::createCPUGenerator();
   generator.set_state(generator_state);
 
   model_ = std::move(fresh);
   ext_norm_ = ext_norm;
   int_norm_ = int_norm;
+  voi_norm_ = voi_norm;
   generator_ = std::move(generator);
   return absl::OkStatus();
 }
@@ -813,8 +830,8 @@ absl::StatusOr<std::unique_ptr<PpoTrainer>> PpoTrainer::Create(const PpoConfig& 
   if (config.threads <= 0) {
     return invalid(absl::StrCat("config.threads must be > 0, got ", config.threads));
   }
-  if (config.value_heads != 1 && config.value_heads != 2) {
-    return invalid(absl::StrCat("config.value_heads must be 1 or 2, got ", config.value_heads));
+  if (config.value_heads < 1 || config.value_heads > 3) {
+    return invalid(absl::StrCat("config.value_heads must be 1, 2 or 3, got ", config.value_heads));
   }
   if (!(config.hidden_gain > 0)) return invalid("config.hidden_gain must be > 0");
   if (!(config.value_clip >= 0)) return invalid("config.value_clip must be >= 0");
@@ -830,7 +847,7 @@ absl::StatusOr<std::unique_ptr<PpoTrainer>> PpoTrainer::Create(const PpoConfig& 
 }
 
 absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float* v_ext,
-                                float* v_int) {
+                                float* v_int, float* v_voi) {
   if (batch <= 0) return absl::OkStatus();
   try {
     torch::NoGradGuard no_grad;
@@ -841,10 +858,12 @@ absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float
     const auto v = out.accessor<double, 2>();
     const double ext_std = impl_->ext_norm_.stddev(), ext_mean = impl_->ext_norm_.mean();
     const double int_std = impl_->int_norm_.stddev(), int_mean = impl_->int_norm_.mean();
-    const bool two_heads = impl_->config_.value_heads == 2;
+    const double voi_std = impl_->voi_norm_.stddev(), voi_mean = impl_->voi_norm_.mean();
+    const int heads = impl_->config_.value_heads;
     for (int64_t i = 0; i < batch; ++i) {
       v_ext[i] = static_cast<float>(v[i][0] * ext_std + ext_mean);
-      v_int[i] = two_heads ? static_cast<float>(v[i][1] * int_std + int_mean) : 0.0f;
+      v_int[i] = heads >= 2 ? static_cast<float>(v[i][1] * int_std + int_mean) : 0.0f;
+      if (v_voi != nullptr) v_voi[i] = heads == 3 ? static_cast<float>(v[i][2] * voi_std + voi_mean) : 0.0f;
     }
   } catch (const c10::Error& e) {
     return absl::InternalError(absl::StrCat("critic forward: ", e.what_without_backtrace()));

@@ -61,7 +61,8 @@ struct PpoConfig {
   // picks per scenario.
   bool separate_optimizers = false;
   // Critic outputs: 2 = extrinsic and intrinsic heads (returns_int trained),
-  // 1 = one head on returns_ext (the learner folds the bonus into the reward).
+  // 1 = one head on returns_ext (the learner folds the bonus into the reward),
+  // 3 = those two and EDTI's interaction head (returns_voi trained).
   int value_heads = 2;
   double hidden_gain = 1.4142135623730951;  // Orthogonal init gain of hidden layers (sqrt 2).
   // > 0: PPO-style value clipping, the loss is the max of the plain and the
@@ -82,12 +83,14 @@ struct PpoBatch {
   std::vector<float> advantages;          // [B], A_ext + c_int * A_int (unnormalised).
   std::vector<float> returns_ext;         // [B], value targets (unnormalised).
   std::vector<float> returns_int;         // [B]
+  std::vector<float> returns_voi;         // [B], value_heads 3 only (EDTI's value of interaction).
 
   // Empties the batch but keeps the vectors' memory, so that a batch reused
   // every iteration allocates (and page-faults) nothing.
   void Clear() {
     size = 0;
-    for (auto* v : {&obs, &critic_inputs, &behaviour_log_probs, &advantages, &returns_ext, &returns_int}) {
+    for (auto* v : {&obs, &critic_inputs, &behaviour_log_probs, &advantages, &returns_ext, &returns_int,
+                    &returns_voi}) {
       v->clear();
     }
     actions.clear();
@@ -130,15 +133,17 @@ class PpoTrainer {
   ~PpoTrainer();
 
   // Denormalised value predictions for critic inputs [batch][critic_dim];
-  // with one value head, v_int is all zeros.
+  // with one value head, v_int is all zeros; v_voi (may be null) gets the
+  // interaction head's, zeros without it.
   // Errors: INTERNAL if LibTorch throws.
-  absl::Status Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int);
+  absl::Status Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int,
+                      float* v_voi = nullptr);
 
   // Updates the return normalisers with the batch's returns, normalises the
   // advantages (mean 0, std 1), then runs `epochs` passes over `minibatches`
   // shuffled minibatches: clipped surrogate (PpoConfig::objective), value
   // loss on normalised targets, entropy bonus, grad-norm clipping. With one
-  // value head, returns_int is ignored.
+  // value head, returns_int is ignored; returns_voi is read with three.
   // Errors: INVALID_ARGUMENT if the batch's vectors do not match `size`;
   // INTERNAL if LibTorch throws or a loss becomes non-finite (weights are
   // left as before that minibatch).

@@ -291,6 +291,43 @@ TEST(PpoTrainerTest, ValuesApproachConstantReturns) {
   EXPECT_NEAR(v[3], -3.0f, 0.5f);
 }
 
+// EDTI's third head learns the interaction returns on its own normaliser, and
+// a checkpoint carries it.
+TEST(PpoTrainerTest, ThirdHeadLearnsTheInteractionReturnsAndRoundTrips) {
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  config.max_grad_norm = 10;
+  config.value_heads = 3;
+  auto trainer = MakeTrainer(config);
+  ASSERT_NE(trainer, nullptr);
+  PpoBatch batch = ConstantReturnBatch(64, {100.0f, 50.0f}, {1.0f, 3.0f});
+  for (int i = 0; i < batch.size; ++i) batch.returns_voi.push_back(i % kContexts == 0 ? 20.0f : -4.0f);
+  for (int i = 0; i < 30; ++i) ASSERT_TRUE(trainer->Train(batch).ok());
+  std::vector<float> inputs = OneHot(0);
+  const std::vector<float> second = OneHot(1);
+  inputs.insert(inputs.end(), second.begin(), second.end());
+  std::vector<float> v_ext(kContexts), v_int(kContexts), v_voi(kContexts);
+  ASSERT_TRUE(trainer->Values(inputs.data(), kContexts, v_ext.data(), v_int.data(), v_voi.data()).ok());
+  EXPECT_NEAR(v_ext[0], 100.0f, 2.0f);
+  EXPECT_NEAR(v_int[1], 3.0f, 0.1f);
+  EXPECT_NEAR(v_voi[0], 20.0f, 0.5f);
+  EXPECT_NEAR(v_voi[1], -4.0f, 0.5f);
+  // The batch must carry the third head's returns.
+  PpoBatch missing = batch;
+  missing.returns_voi.pop_back();
+  EXPECT_THAT(std::string(trainer->Train(missing).status().message()), HasSubstr("returns_voi"));
+
+  const std::string path = TempPath("ppo_trainer_test_three_heads.pt");
+  ASSERT_TRUE(trainer->Save(path).ok());
+  auto restored = MakeTrainer(config);
+  ASSERT_NE(restored, nullptr);
+  ASSERT_TRUE(restored->Load(path).ok());
+  std::vector<float> r_ext(kContexts), r_int(kContexts), r_voi(kContexts);
+  ASSERT_TRUE(restored->Values(inputs.data(), kContexts, r_ext.data(), r_int.data(), r_voi.data()).ok());
+  EXPECT_EQ(r_voi, v_voi);
+  std::remove(path.c_str());
+}
+
 TEST(PpoTrainerTest, ValuesLearnContextDependentReturns) {
   // Returns 100 / 50 (ext) and 1 / 3 (int): the normalised targets are about
   // +-1, so the critic itself must separate the contexts.
@@ -692,7 +729,7 @@ TEST(PpoTrainerTest, OptionsRoundTripThroughCheckpointsAndMismatchesAreRefused) 
 
 TEST(PpoTrainerTest, CreateRejectsBadOptions) {
   std::vector<PpoConfig> bad(4, SmallConfig());
-  bad[0].value_heads = 3;
+  bad[0].value_heads = 4;
   bad[1].hidden_gain = 0;
   bad[2].value_clip = -1;
   bad[3].huber_delta = -0.5;

@@ -200,5 +200,51 @@ TEST_F(RewardServiceTest, StoppedServiceIsUnavailable) {
   EXPECT_EQ(Score(Valid(), &response).error_code(), grpc::StatusCode::UNAVAILABLE);
 }
 
+
+// EITI and EDTI over loopback on EDTI's pass: the influence matrix travels in
+// the response for edti only, and both refuse joint credit modes at creation.
+TEST(InfluenceServiceTest, EdtiReturnsInfluencesEitiDoesNot) {
+  env::ScenarioConfig pass;
+  pass.name = "pass";
+  auto scenario = env::MakeScenario(pass, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  const int n = (*scenario)->num_agents();
+  for (const std::string kind : {"eiti", "edti"}) {
+    ScorerConfig config;
+    config.credit = Credit::kIndependent;
+    auto scorer = MakeScorer(kind, **scenario, config);
+    ASSERT_TRUE(scorer.ok()) << scorer.status();
+    RewardServiceImpl service(scenario->get(), scorer->get(), kind, config, "");
+    int port = 0;
+    auto server = StartServer("127.0.0.1:0", {&service}, &port);
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+    v1::ScoreRequest request;
+    *request.mutable_unroll() = testing::RandomUnroll(**scenario, 16, 4, 5);
+    v1::ScoreResponse response;
+    grpc::ClientContext context;
+    context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+    ASSERT_TRUE(stub->Score(&context, request, &response).ok()) << kind;
+    const int N = response.num_transitions();
+    ASSERT_EQ(N, 64);
+    for (int i = 0; i < N * n; ++i) EXPECT_GT(response.agent_rewards(i), 0.0f) << kind << " curiosity > 0";
+    if (kind == "eiti") {
+      EXPECT_EQ(response.influences_size(), 0);
+    } else {
+      ASSERT_EQ(response.influences_size(), N * n * n);
+      for (int t = 0; t < N; ++t) {
+        for (int a = 0; a < n; ++a) EXPECT_EQ(response.influences((t * n + a) * n + a), 0.0f);
+      }
+    }
+    grpc::ClientContext stats_context;
+    v1::RewardStats stats;
+    ASSERT_TRUE(stub->GetStats(&stats_context, v1::GetStatsRequest(), &stats).ok());
+    EXPECT_EQ(stats.reward_kind(), kind);
+    EXPECT_GT(stats.distinct_keys(), 0) << "the influence tables";
+    EXPECT_GT(stats.distinct_local_keys(), 0) << "the curiosity's cell counts";
+    (*server)->Shutdown();
+  }
+}
+
 }  // namespace
 }  // namespace imca::reward

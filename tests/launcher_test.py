@@ -70,6 +70,17 @@ class LauncherDefaultsTest(unittest.TestCase):
         self.assertEqual(launch.sync_unrolls(old), 0)
         self.assertEqual(launch.learner_option_flags(old), ["--separate_optimizers=false"])
 
+    def test_eiti_runs_with_its_own_credit_and_scale(self):
+        args = launch.parse_args(["--scenario", "pass", "--reward", "eiti"])
+        self.assertEqual((args.credit, args.beta, args.eta, args.beta_t), ("independent", 1.0, 10.0, 10.0))
+        self.assertEqual(launch.parse_args(["--scenario", "pass", "--door-timer", "0"]).door_timer, 0)
+        for bad, flag in [(["--reward", "eiti", "--credit", "imca"], "--credit"),
+                          (["--scenario", "pass", "--door-timer", "31"], "--door-timer")]:
+            r = run(bad)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn(flag, r.stderr)
+
     def test_a_run_from_before_the_defaults_changed_resumes_as_it_ran(self):
         with tempfile.TemporaryDirectory() as run_dir:
             os.mkdir(os.path.join(run_dir, "checkpoints"))

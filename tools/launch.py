@@ -19,11 +19,11 @@ import time
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 SCENARIOS = ["coop_nav", "predator_prey", "multi_room", "twin_buttons", "pass", "secret_room"]
-REWARDS = ["count", "rnd", "sf", "eiti"]
+REWARDS = ["count", "rnd", "sf", "eiti", "edti"]
 # Reward kinds whose per-agent bonus is the method itself (BASELINES.md 1):
 # they run with credit independent (or none) and beta 1, their own
 # coefficients (--eta, --beta-t) setting the scale.
-PER_AGENT_REWARDS = ["eiti"]
+PER_AGENT_REWARDS = ["eiti", "edti"]
 CREDITS = ["none", "independent", "shared", "imca"]
 PERMUTATIONS = ["off", "random", "canonical"]
 
@@ -112,10 +112,10 @@ def parse_args(argv):
                    help="door scenarios: EDTI's door-open interval doi (-1: the scenario default; docs/scenarios.md)")
     p.add_argument("--reward", default="count", choices=REWARDS, help="global novelty kind")
     p.add_argument("--credit", default=None, choices=CREDITS,
-                   help="credit mode (default imca; independent for eiti)")
+                   help="credit mode (default imca; independent for eiti and edti)")
     p.add_argument("--permutation", default="off", choices=PERMUTATIONS)
-    p.add_argument("--beta", type=float, default=None, help="coefficient of the global bonus (default 0.5; 1 for eiti)")
-    p.add_argument("--eta", type=float, default=10.0, help="eiti: coefficient of the decentralised curiosity")
+    p.add_argument("--beta", type=float, default=None, help="coefficient of the global bonus (default 0.5; 1 for eiti, edti)")
+    p.add_argument("--eta", type=float, default=10.0, help="eiti, edti: coefficient of the decentralised curiosity")
     p.add_argument("--beta-t", type=float, default=10.0, help="eiti: coefficient of the summed influence")
     p.add_argument("--temperature", type=float, default=1.0, help="softmax temperature of the shares")
     p.add_argument("--seed", type=int, default=1)
@@ -172,6 +172,8 @@ def parse_args(argv):
                 "use --credit independent (or none)")
     if args.beta is None:
         args.beta = 1.0 if per_agent else 0.5
+    if args.reward == "edti" and args.value_heads == 1:
+        p.error("argument --value-heads: edti learns its value of interaction with a third head; drop the flag")
     if args.eta < 0 or args.beta_t < 0:
         p.error("argument --eta/--beta-t: must be >= 0")
     if args.beta < 0:
@@ -438,7 +440,8 @@ def run(args):
             f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}",
             f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
-            f"--seed={args.seed}"] + learner_option_flags(args) + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
+            f"--seed={args.seed}", f"--edti={str(args.reward == 'edti').lower()}"] + learner_option_flags(args)
+            + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
         learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)
         actors = []
         for i in range(args.actors):
