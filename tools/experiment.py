@@ -60,9 +60,11 @@ PRESETS = {
         + pairing("multi_room", "sf", 4_000_000, [1, 2, 3, 4, 5]),
     },
     "edti": {
-        "description": "EDTI's tasks pass and secret_room with count novelty; credit none/shared/imca; "
-                       "5 seeds; 3M env steps",
+        "description": "EDTI's exact tasks pass and secret_room: count novelty with credit none/shared/imca "
+                       "against EITI and EDTI (docs/baselines.md); 5 seeds; 3M env steps",
         "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
+                     "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000},
+                    {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
                      "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000}],
     },
     "quick": {
@@ -149,7 +151,10 @@ def labeller(cells):
                for pair, group in by_pair.items()}
 
     def method(cell):
-        label = cell["credit"]
+        # EITI and EDTI are methods of their own (their per-agent bonus is
+        # the method), named by their reward kind.
+        per_agent = cell["reward"] in launch.PER_AGENT_REWARDS and cell["credit"] == "independent"
+        label = cell["reward"] if per_agent else cell["credit"]
         if cell["permutation"] != "off":
             label += f"/{cell['permutation']}"
         shown = {k: v for k, v in settings(cell).items() if k in varying[(cell["scenario"], cell["reward"])]}

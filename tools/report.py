@@ -145,34 +145,21 @@ def plots(out, groups, method, cell_id):
     scenarios = {}
     for (scenario, reward, label), members in groups.items():
         scenarios.setdefault((scenario, reward), []).append((label, members))
+    # A scenario run with several reward kinds (the edti preset: count credit
+    # modes against EITI and EDTI) also gets one plot of all its methods.
+    by_scenario = {}
+    for (scenario, reward, label), members in groups.items():
+        by_scenario.setdefault(scenario, []).append((f"{reward}: {label}", members))
+    for scenario, methods in by_scenario.items():
+        if len({reward for (s, reward, _) in groups if s == scenario}) > 1:
+            curves_figure(out, methods, cell_id, plt, f"{scenario}: mean and 95% CI over seeds",
+                          os.path.join(out, f"curves-{scenario}.png"))
     gif_dir = os.path.join(out, "gifs")
     for (scenario, reward), methods in scenarios.items():
         if not any(s is not None for _, members in methods for _, s in members):
             continue  # Nothing finished yet for this scenario.
-        fig, ax = plt.subplots(figsize=(7, 4.2))
-        for label, members in methods:
-            runs = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
-            runs = [r for r in runs if r]
-            if not runs:
-                continue
-            budget = members[0][0]["steps"]
-            grid = [budget * i / 100 for i in range(101)]
-            ys = [curve(r, grid) for r in runs]
-            mean = [statistics.mean(col) for col in zip(*ys)]
-            line, = ax.plot(grid, mean, lw=1.6, label=f"{label} ({len(runs)})")
-            if len(runs) > 1:
-                half = [mean_ci(list(col))[1] for col in zip(*ys)]
-                ax.fill_between(grid, [max(0, m - h) for m, h in zip(mean, half)],
-                                [min(1, m + h) for m, h in zip(mean, half)], color=line.get_color(), alpha=0.15)
-        ax.set_xlabel("env steps")
-        ax.set_ylabel("evaluation success rate")
-        ax.set_ylim(-0.02, 1.02)
-        ax.grid(alpha=0.3)
-        ax.set_title(f"{scenario} + {reward}: mean and 95% CI over seeds", fontsize=10)
-        ax.legend(fontsize=8, loc="upper left")
-        fig.tight_layout()
-        fig.savefig(os.path.join(out, f"curves-{scenario}-{reward}.png"), dpi=110)
-        plt.close(fig)
+        curves_figure(out, methods, cell_id, plt, f"{scenario} + {reward}: mean and 95% CI over seeds",
+                      os.path.join(out, f"curves-{scenario}-{reward}.png"))
         # GIF of each method's final policy (its first finished seed).
         os.makedirs(gif_dir, exist_ok=True)
         for label, members in methods:
@@ -183,6 +170,36 @@ def plots(out, groups, method, cell_id):
                     shutil.copyfile(gif, os.path.join(gif_dir, name))
                     break
         shares_plot(out, scenario, reward, methods, cell_id, plt)
+
+
+def curves_figure(out, methods, cell_id, plt, title, path):
+    """Evaluation success over env steps, one line (mean, 95% CI band) per method."""
+    if not any(s is not None for _, members in methods for _, s in members):
+        return
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for label, members in methods:
+        runs = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
+        runs = [r for r in runs if r]
+        if not runs:
+            continue
+        budget = members[0][0]["steps"]
+        grid = [budget * i / 100 for i in range(101)]
+        ys = [curve(r, grid) for r in runs]
+        mean = [statistics.mean(col) for col in zip(*ys)]
+        line, = ax.plot(grid, mean, lw=1.6, label=f"{label} ({len(runs)})")
+        if len(runs) > 1:
+            half = [mean_ci(list(col))[1] for col in zip(*ys)]
+            ax.fill_between(grid, [max(0, m - h) for m, h in zip(mean, half)],
+                            [min(1, m + h) for m, h in zip(mean, half)], color=line.get_color(), alpha=0.15)
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("evaluation success rate")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def shares_plot(out, scenario, reward, methods, cell_id, plt):
