@@ -393,10 +393,6 @@ void Scenario::MoveAgents(const int32_t* state, int32_t* cells, int count, const
     if (row < 0 || row >= map_.height() || col < 0 || col >= width) continue;
     const int cell = row * width + col;
     if (!Enterable(state, cell)) continue;
-    if (agents_share_cells_) {
-      target[a] = cell;
-      continue;
-    }
     bool taken = false;
     for (int j = 0; j < num_others; ++j) taken |= others[j] == cell;
     if (!taken) target[a] = cell;
@@ -571,8 +567,9 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConf
   if (const std::string problem = spec->second.check(map); !problem.empty()) {
     return absl::InvalidArgumentError(absl::StrCat(map.source(), ": ", config.name, " ", problem));
   }
-  if (config.door_timer < -1 || config.door_timer > 30) {
-    return absl::InvalidArgumentError(absl::StrCat("door_timer ", config.door_timer, " not in [0, 30]"));
+  if (config.door_timer < -1 || config.door_timer > DoorScenario::kMaxDoorTimer) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("door_timer ", config.door_timer, " not in [0, ", DoorScenario::kMaxDoorTimer, "]"));
   }
   if (config.step_limit < 0 || config.step_limit > 100000) {
     return absl::InvalidArgumentError(absl::StrCat("step_limit ", config.step_limit, " not in [1, 100000]"));

@@ -74,8 +74,8 @@ class Scenario {
   float success_reward() const { return success_reward_; }
   float step_penalty() const { return step_penalty_; }
   // A hash of the map layout and the rules (name, agents, entities, actions,
-  // step limit, rewards, view radius): two processes with equal fingerprints
-  // play the same game. Never 0.
+  // step limit, rewards, view radius, door timer, shared cells, spawn pool):
+  // two processes with equal fingerprints play the same game. Never 0.
   uint64_t fingerprint() const;
   // Number of meaningful low bits of z.
   virtual int num_object_bits() const = 0;
@@ -95,8 +95,9 @@ class Scenario {
   bool ButtonPressed(const int32_t* state, int button) const;
 
   // OK if `state` could occur in this scenario: cells in range and not walls,
-  // z within num_object_bits, t within [0, step_limit]. The error message
-  // names the offending element, e.g. "cell of agent 1".
+  // no two agents on one cell (unless agents_share_cells()) and no agent on
+  // an entity, z within num_object_bits, t within [0, step_limit]. The error
+  // message names the offending element, e.g. "cell of agent 1".
   absl::Status ValidateState(const int32_t* state) const;
 
   // Multi-line text picture (docs/maps.md legend; agents '1'.., the prey 'P',
@@ -112,10 +113,10 @@ class Scenario {
   // True if an agent or entity may enter `cell` given the doors of `state`.
   bool Enterable(const int32_t* state, int cell) const;
   // Simultaneous moves of `count` movers (cells updated in place): a move into
-  // a wall, a closed door or off the grid fails. Unless agents share cells,
-  // movers never share a cell, swap places or enter `others` (cells of
-  // non-movers); when several want the same cell, a random priority order
-  // drawn from `rng` (only on such steps) decides and the others stay.
+  // a wall, a closed door, `others` (cells of non-movers) or off the grid
+  // fails. Unless agents share cells, movers never share a cell or swap
+  // places; when several want the same cell, a random priority order drawn
+  // from `rng` (only on such steps) decides and the others stay.
   void MoveAgents(const int32_t* state, int32_t* cells, int count, const int32_t* actions,
                   const int32_t* others, int num_others, Rng& rng) const;
   // Places agents at their fixed spawns or on random cells of spawn_pool():

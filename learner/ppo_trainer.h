@@ -80,7 +80,7 @@ struct PpoBatch {
   std::vector<float> critic_inputs;       // [B][critic_dim], critic input.
   std::vector<int32_t> actions;           // [B]
   std::vector<float> behaviour_log_probs; // [B], recorded by the actor.
-  std::vector<float> advantages;          // [B], A_ext + c_int * A_int (unnormalised).
+  std::vector<float> advantages;          // [B], A_ext + c_int * A_int (+ A_voi with EDTI), unnormalised.
   std::vector<float> returns_ext;         // [B], value targets (unnormalised).
   std::vector<float> returns_int;         // [B]
   std::vector<float> returns_voi;         // [B], value_heads 3 only (EDTI's value of interaction).

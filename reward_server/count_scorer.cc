@@ -77,7 +77,6 @@ void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, cons
       }
       counterfactual[a] = actions[a];
       out.contributions[i * n_ + a] = static_cast<float>(novelty - baseline);
-      out.agent_scale[i * n_ + a] = 1.0f;
     }
   }
   if (dry_run) return;

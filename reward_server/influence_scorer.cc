@@ -11,6 +11,11 @@ namespace {
 
 constexpr char kMagic[] = "IMCA-INFLUENCE-1";
 
+// What makes the keys below exact: agent ids below 15 (15 marks the own-agent
+// tables), cells below 2^16, actions below 2^3 (MakeNovelty checks).
+static_assert(env::kMaxAgents < 15);
+static_assert(env::GridMap::kMaxSide * env::GridMap::kMaxSide <= 65536);
+
 // Exact keys: tag (2 bits), i and j (4 each), cells (16 each), actions (3 each).
 enum Tag : uint64_t { kPairNext = 0, kPair = 1, kOwnNext = 2, kOwn = 3 };
 
@@ -52,7 +57,7 @@ float InfluenceNovelty::Influence(const int32_t* state, const int32_t* actions, 
                                   const absl::flat_hash_map<uint64_t, uint32_t>& pending) const {
   auto count = [&](uint64_t key) {
     auto it = pending.find(key);
-    return static_cast<double>(transitions_.Get(key) + (it == pending.end() ? 0 : it->second));
+    return static_cast<double>(transitions_.Get(key)) + (it == pending.end() ? 0.0 : it->second);
   };
   const int32_t* cells = state + 1;
   const int32_t* reached = next + 1;
@@ -69,6 +74,9 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, Credit cred
   const int n = n_;
   const int64_t E = batch.num_envs, K = k_;
   const int step_index = static_cast<int>(K) - 1;
+  if (credit != Credit::kIndependent || out.local == nullptr) {
+    return absl::InternalError("eiti/edti: only independent credit (a local novelty) is served");
+  }
   absl::MutexLock lock(&mu_);
   absl::flat_hash_map<uint64_t, uint32_t> pending;
   for (int64_t t = 0; t < batch.length; ++t) {

@@ -20,9 +20,11 @@ namespace imca::reward {
 // each p a ratio of counts N(s_j, a_j, s'_j) / N(s_j, a_j) and
 // N(s_i, a_i, s_j, a_j, s'_j) / N(s_i, a_i, s_j, a_j). Per time step of a
 // request, all its envs' transitions are added before any is read, and a
-// transition out of a reset state (t = 0) is neither counted nor rewarded, as
-// EDTI's vec env does. The decentralised curiosity eta / sqrt(N_i(s'_i) + 1)
-// reads agent i's cell count before the step's increments.
+// transition out of a reset state (t = 0) neither enters the influence tables
+// nor gets an influence term, as EDTI's vec env does. The decentralised
+// curiosity eta / sqrt(N_i(s'_i) + 1) reads agent i's cell count before the
+// step's increments and counts every transition. Permutation modes do not
+// apply (EDTI has none; the config's permutation is ignored).
 // Local novelty (credit independent only; the per-agent bonus is the method):
 //   eiti: eta / sqrt(N_i(s'_i) + 1) + beta_t * sum_{j != i} c_{i->j};
 //   edti: eta / sqrt(N_i(s'_i) + 1), with every c_{i->j} returned as

@@ -22,6 +22,9 @@ absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, co
     return std::unique_ptr<Novelty>(*std::move(sf));
   }
   if (kind == "eiti" || kind == "edti") {
+    if (scenario.num_actions() > 8) {
+      return absl::InvalidArgumentError("eiti/edti: at most 8 actions (their count keys hold 3 bits)");
+    }
     InfluenceConfig influence = kinds.influence;
     influence.edti = kind == "edti";
     if (!(influence.eta >= 0)) return absl::InvalidArgumentError("eta must be >= 0");

@@ -18,7 +18,8 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   }
   const bool imca = config_.credit == Credit::kImca;
   const bool independent = config_.credit == Credit::kIndependent;
-  std::vector<float> joint(independent ? 0 : N), scale(imca ? N * n : 0), local(independent ? N * n : 0);
+  std::vector<float> joint(independent ? 0 : N), local(independent ? N * n : 0);
+  std::vector<double> divisor(imca ? N * n : 0, 1.0);
   NoveltyOutput novelty;
   if (independent) {
     novelty.local = local.data();
@@ -27,7 +28,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   }
   if (imca) {
     novelty.contributions = out.contributions;
-    novelty.agent_scale = scale.data();
+    novelty.agent_divisor = divisor.data();
   }
   novelty.influences = out.influences;
   if (absl::Status status = novelty_->Compute(batch, config_.credit, dry_run, novelty); !status.ok()) return status;
@@ -40,7 +41,9 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
     if (imca) {
       out.global_rewards[i] = beta * joint[i];
       SoftmaxShares(contributions, n, config_.temperature, shares);
-      for (int a = 0; a < n; ++a) rewards[a] = shares[a] * out.global_rewards[i] * scale[i * n + a];
+      for (int a = 0; a < n; ++a) {
+        rewards[a] = static_cast<float>(shares[a] * out.global_rewards[i] / divisor[i * n + a]);
+      }
       continue;
     }
     float total = 0;

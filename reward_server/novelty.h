@@ -18,10 +18,10 @@ namespace imca::reward {
 struct NoveltyOutput {
   // Joint credit (shared, imca): the global novelty N(S, U), so R_i = beta * joint.
   float* joint = nullptr;
-  // imca only: each agent's contribution r^a (d^a for SF) and a factor on its
-  // reward (1 unless the kind scales it, as SF's 1 / sqrt(N_ep)).
+  // imca only: each agent's contribution r^a (d^a for SF) and a divisor of
+  // its reward, preset to 1 (SF writes sqrt(N_ep)).
   float* contributions = nullptr;
-  float* agent_scale = nullptr;
+  double* agent_divisor = nullptr;
   // Independent credit: each agent's own novelty, r_i^a = beta * local.
   float* local = nullptr;
   // Kinds that ReturnsInfluences(): c_{i->j}, [N][n][n].
@@ -62,10 +62,12 @@ class Novelty {
 //   shared:      r_i^a = R_i = beta * N(S, U).
 //   independent: r_i^a = beta * N_a (the kind's local novelty); R_i is
 //                reported as the team sum.
-//   imca:        p^a = softmax(r^a / tau), r_i^a = p^a * R_i * scale^a.
+//   imca:        p^a = softmax(r^a / tau), r_i^a = p^a * R_i / divisor^a.
 // contributions report r^a (imca) or N_a (independent), 0 otherwise; shares
-// report p^a for imca and r_i^a / sum_b r_i^b elsewhere (1/n when the sum is
-// 0). Thread-safe if the novelty is.
+// report p^a for imca, 1/n for shared, and r_i^a / sum_b r_i^b for
+// independent (1/n when the sum is not positive; with EITI's negative
+// influences a share can fall outside [0, 1]: they are diagnostics only).
+// Thread-safe if the novelty is.
 class CreditScorer : public Scorer {
  public:
   // `n` agents. The caller checks novelty->Supports(config.credit) first

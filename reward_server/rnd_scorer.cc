@@ -238,7 +238,6 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
       const float* counterfactual = cf.data_ptr<float>() + (i * n + slot_of[i * n + a]) * A;
       for (int u = 0; u < A; ++u) baseline += probs[u] * counterfactual[u];
       out.contributions[i * n + a] = static_cast<float>(nov[i] - baseline);
-      out.agent_scale[i * n + a] = 1.0f;
     }
   }
   if (!dry_run) TrainJoint(batch, inputs);
@@ -319,6 +318,10 @@ RndNovelty::~RndNovelty() = default;
 absl::Status RndNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
                                  const NoveltyOutput& out) {
   absl::MutexLock lock(&impl_->mu);
+  if (credit != impl_->config.credit) {
+    return absl::InternalError(absl::StrCat("rnd: built for credit ", CreditName(impl_->config.credit),
+                                            ", asked for ", CreditName(credit)));
+  }
   try {
     if (credit == Credit::kIndependent) {
       impl_->ComputeLocal(batch, dry_run, out);

@@ -221,7 +221,7 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
       uint64_t key = Mix(Mix(Mix(batch.actor, static_cast<uint64_t>(batch.episode_ids[i])), a),
                          static_cast<uint64_t>(next[env::AgentIndex(a)]));
       const uint32_t visits = Visit(key, dry_run);
-      out.agent_scale[i * n + a] = static_cast<float>(1.0 / std::sqrt(static_cast<double>(visits)));
+      out.agent_divisor[i * n + a] = std::sqrt(static_cast<double>(visits));
     }
   }
   if (!dry_run) model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
@@ -269,6 +269,10 @@ SfNovelty::~SfNovelty() = default;
 absl::Status SfNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
                                 const NoveltyOutput& out) {
   absl::MutexLock lock(&impl_->mu);
+  if (credit != impl_->config.credit) {
+    return absl::InternalError(absl::StrCat("sf: built for credit ", CreditName(impl_->config.credit),
+                                            ", asked for ", CreditName(credit)));
+  }
   try {
     if (credit == Credit::kIndependent) {
       impl_->ComputeLocal(batch, dry_run, out);
