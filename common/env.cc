@@ -363,7 +363,6 @@ uint64_t Scenario::fingerprint() const {
     for (int32_t cell : *cells) mix(cell);
   }
   for (int a = 0; a < num_agents_; ++a) mix(static_cast<uint64_t>(map_.FixedSpawn(a) + 1));
-  for (int32_t cell : spawn_pool_) mix(cell);
   return h == 0 ? 1 : h;
 }
 
@@ -493,7 +492,8 @@ absl::Status Scenario::ValidateState(const int32_t* state) const {
           absl::StrCat("cell of ", who, " is ", cell, ", not a floor cell of the map"));
     }
     // Agents that may share a cell may share it; entities never.
-    for (int j = 0; j < i && !(agents_share_cells_ && i < num_agents_); ++j) {
+    const bool may_share = agents_share_cells_ && i < num_agents_;
+    for (int j = 0; j < i && !may_share; ++j) {
       if (state[1 + j] == cell) {
         return absl::InvalidArgumentError(absl::StrCat("cell of ", who, " is ", cell, ", already taken"));
       }

@@ -74,8 +74,9 @@ class Scenario {
   float success_reward() const { return success_reward_; }
   float step_penalty() const { return step_penalty_; }
   // A hash of the map layout and the rules (name, agents, entities, actions,
-  // step limit, rewards, view radius, door timer, shared cells, spawn pool):
-  // two processes with equal fingerprints play the same game. Never 0.
+  // step limit, rewards, view radius, door timer, shared cells; the spawn pool
+  // follows from those): two processes with equal fingerprints play the same
+  // game. Never 0.
   uint64_t fingerprint() const;
   // Number of meaningful low bits of z.
   virtual int num_object_bits() const = 0;

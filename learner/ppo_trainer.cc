@@ -518,18 +518,11 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
                      .to(torch::kInt64);
   data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});
   data.advantages = NormaliseAdvantages(CopyFloats(batch.advantages, {b}));
-  if (config_.value_heads == 3) {
-    data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
-                                       NormaliseReturns(batch.returns_int, int_norm_),
-                                       NormaliseReturns(batch.returns_voi, voi_norm_)},
-                                      /*dim=*/1);
-  } else if (config_.value_heads == 2) {
-    data.value_targets = torch::stack({NormaliseReturns(batch.returns_ext, ext_norm_),
-                                       NormaliseReturns(batch.returns_int, int_norm_)},
-                                      /*dim=*/1);
-  } else {
-    data.value_targets = NormaliseReturns(batch.returns_ext, ext_norm_).unsqueeze(1);
-  }
+  // One column per value head: extrinsic, intrinsic, interaction.
+  std::vector<torch::Tensor> targets = {NormaliseReturns(batch.returns_ext, ext_norm_)};
+  if (config_.value_heads >= 2) targets.push_back(NormaliseReturns(batch.returns_int, int_norm_));
+  if (config_.value_heads == 3) targets.push_back(NormaliseReturns(batch.returns_voi, voi_norm_));
+  data.value_targets = torch::stack(targets, /*dim=*/1);
   // The networks as they are before this iteration's first update: the
   // proximal policy of the decoupled objective, and the anchor of value
   // clipping.

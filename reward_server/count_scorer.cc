@@ -34,8 +34,7 @@ uint32_t CountNovelty::JointCount(const int32_t* state, const int32_t* actions) 
   return global_.Get(codec_.GlobalKey(state, actions, order));
 }
 
-absl::Status CountNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                                   const NoveltyOutput& out) {
+absl::Status CountNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   absl::MutexLock lock(&mu_);
   for (int64_t i = 0; i < batch.size; ++i) {
     ComputeOne(batch.states + i * k_, batch.actions + i * n_, batch.action_probs + i * n_ * num_actions_, dry_run,

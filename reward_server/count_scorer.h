@@ -33,8 +33,7 @@ class CountNovelty final : public Novelty {
   CountNovelty(const env::Scenario& scenario, const ScorerConfig& config);
 
   bool Supports(Credit credit) const override { return true; }
-  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                       const NoveltyOutput& out) override;
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;

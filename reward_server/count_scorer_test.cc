@@ -22,11 +22,8 @@ constexpr float kTol = 1e-5f;
 class CountScorerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    auto map = env::GridMap::Parse("1..T2\n", "line");
-    ASSERT_TRUE(map.ok());
-    auto scenario = env::MakeScenarioWithMap(env::ScenarioConfig{}, *std::move(map));
-    ASSERT_TRUE(scenario.ok());
-    scenario_ = *std::move(scenario);
+    scenario_ = ::imca::testing::TextScenario();
+    ASSERT_NE(scenario_, nullptr);
   }
 
   using Result = ::imca::testing::ScoredBatch;

@@ -37,11 +37,19 @@ uint64_t OwnKey(Tag tag, int j, int32_t s_j, int32_t a_j, int32_t next_j) {
 
 uint64_t CellKey(int i, int32_t cell) { return static_cast<uint64_t>(i) << 16 | static_cast<uint64_t>(cell); }
 
-// The keys a transition adds to the pair tables, for ordered pair (i, j).
-template <typename F>
-void ForEachKey(const int32_t* cells, const int32_t* actions, const int32_t* next, int i, int j, F&& f) {
-  f(PairKey(kPairNext, i, j, cells[i], actions[i], cells[j], actions[j], next[j]));
-  f(PairKey(kPair, i, j, cells[i], actions[i], cells[j], actions[j], 0));
+// Adds one transition (the agents' cells, actions and reached cells) to
+// `pending`: each agent's own tables and those of every ordered pair.
+void AddTransition(int n, const int32_t* cells, const int32_t* actions, const int32_t* reached,
+                   absl::flat_hash_map<uint64_t, uint32_t>* pending) {
+  for (int j = 0; j < n; ++j) {
+    ++(*pending)[OwnKey(kOwnNext, j, cells[j], actions[j], reached[j])];
+    ++(*pending)[OwnKey(kOwn, j, cells[j], actions[j], 0)];
+    for (int i = 0; i < n; ++i) {
+      if (i == j) continue;
+      ++(*pending)[PairKey(kPairNext, i, j, cells[i], actions[i], cells[j], actions[j], reached[j])];
+      ++(*pending)[PairKey(kPair, i, j, cells[i], actions[i], cells[j], actions[j], 0)];
+    }
+  }
 }
 
 }  // namespace
@@ -51,6 +59,7 @@ InfluenceNovelty::InfluenceNovelty(const env::Scenario& scenario, const ScorerCo
     : scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
       n_(scenario.num_agents()),
       k_(scenario.state_size()),
+      step_index_(scenario.step_index()),
       influence_(influence) {}
 
 float InfluenceNovelty::Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
@@ -69,12 +78,10 @@ float InfluenceNovelty::Influence(const int32_t* state, const int32_t* actions, 
   return static_cast<float>(influence_.log_form ? std::log(pair) - std::log(own) : 1.0 - own / pair);
 }
 
-absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                                       const NoveltyOutput& out) {
+absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const int n = n_;
   const int64_t E = batch.num_envs, K = k_;
-  const int step_index = static_cast<int>(K) - 1;
-  if (credit != Credit::kIndependent || out.local == nullptr) {
+  if (out.local == nullptr) {
     return absl::InternalError("eiti/edti: only independent credit (a local novelty) is served");
   }
   absl::MutexLock lock(&mu_);
@@ -85,17 +92,8 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, Credit cred
     for (int64_t e = 0; e < E; ++e) {
       const int64_t row = t * E + e;
       const int32_t* state = batch.states + row * K;
-      if (state[step_index] == 0) continue;
-      const int32_t* cells = state + 1;
-      const int32_t* actions = batch.actions + row * n;
-      const int32_t* reached = batch.next_states + row * K + 1;
-      for (int j = 0; j < n; ++j) {
-        ++pending[OwnKey(kOwnNext, j, cells[j], actions[j], reached[j])];
-        ++pending[OwnKey(kOwn, j, cells[j], actions[j], 0)];
-        for (int i = 0; i < n; ++i) {
-          if (i != j) ForEachKey(cells, actions, reached, i, j, [&](uint64_t key) { ++pending[key]; });
-        }
-      }
+      if (state[step_index_] == 0) continue;
+      AddTransition(n, state + 1, batch.actions + row * n, batch.next_states + row * K + 1, &pending);
     }
     // 2. Read the influences and the curiosity (its counts before this step).
     for (int64_t e = 0; e < E; ++e) {
@@ -103,7 +101,7 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, Credit cred
       const int32_t* state = batch.states + row * K;
       const int32_t* next = batch.next_states + row * K;
       const int32_t* actions = batch.actions + row * n;
-      const bool counted = state[step_index] != 0;
+      const bool counted = state[step_index_] != 0;
       for (int i = 0; i < n; ++i) {
         double sum = 0;
         for (int j = 0; j < n; ++j) {
@@ -124,18 +122,6 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, Credit cred
     }
   }
   return absl::OkStatus();
-}
-
-float InfluenceNovelty::InfluenceForTest(const int32_t* state, const int32_t* actions, const int32_t* next, int i,
-                                         int j) const {
-  absl::flat_hash_map<uint64_t, uint32_t> pending;
-  const int32_t* cells = state + 1;
-  const int32_t* reached = next + 1;
-  ++pending[OwnKey(kOwnNext, j, cells[j], actions[j], reached[j])];
-  ++pending[OwnKey(kOwn, j, cells[j], actions[j], 0)];
-  ForEachKey(cells, actions, reached, i, j, [&](uint64_t key) { ++pending[key]; });
-  absl::ReaderMutexLock lock(&mu_);
-  return Influence(state, actions, next, i, j, pending);
 }
 
 void InfluenceNovelty::FillStats(v1::RewardStats* stats) const {

@@ -43,15 +43,10 @@ class InfluenceNovelty final : public Novelty {
 
   bool Supports(Credit credit) const override { return credit == Credit::kIndependent; }
   bool ReturnsInfluences() const override { return influence_.edti; }
-  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                       const NoveltyOutput& out) override;
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
-
-  // The influence c_{i->j} of the current tables for one transition, as if
-  // it had been added (tests).
-  float InfluenceForTest(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j) const;
 
  private:
   float Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
@@ -61,6 +56,7 @@ class InfluenceNovelty final : public Novelty {
   const std::string scenario_tag_;
   const int n_;
   const int k_;
+  const int step_index_;  // Of the step count in a state: 0 marks a reset state.
   const InfluenceConfig influence_;
 
   mutable absl::Mutex save_mu_;  // Taken before mu_.

@@ -35,11 +35,8 @@ struct Result {
 class InfluenceTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    auto map = env::GridMap::Parse("1..T2\n", "line");
-    ASSERT_TRUE(map.ok());
-    auto scenario = env::MakeScenarioWithMap(env::ScenarioConfig{}, *std::move(map));
-    ASSERT_TRUE(scenario.ok());
-    scenario_ = *std::move(scenario);
+    scenario_ = ::imca::testing::TextScenario();
+    ASSERT_NE(scenario_, nullptr);
   }
 
   std::unique_ptr<CreditScorer> Make(const std::string& kind, bool log_form = false) {
@@ -182,7 +179,7 @@ TEST_F(InfluenceTest, OnlyIndependentCreditIsOffered) {
     auto scorer = MakeScorer("edti", *scenario_, config);
     ASSERT_FALSE(scorer.ok());
     EXPECT_EQ(scorer.status().code(), absl::StatusCode::kInvalidArgument);
-    EXPECT_NE(scorer.status().message().find("use independent"), std::string::npos) << scorer.status();
+    EXPECT_NE(scorer.status().message().find("it serves: none, independent)"), std::string::npos) << scorer.status();
   }
   ScorerConfig none;
   none.credit = Credit::kNone;

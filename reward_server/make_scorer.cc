@@ -40,11 +40,13 @@ absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind
   auto novelty = MakeNovelty(kind, scenario, config, kinds);
   if (!novelty.ok()) return novelty.status();
   if (config.credit != Credit::kNone && !(*novelty)->Supports(config.credit)) {
+    std::vector<std::string> served;
+    for (Credit credit : {Credit::kIndependent, Credit::kShared, Credit::kImca}) {
+      if ((*novelty)->Supports(credit)) served.emplace_back(CreditName(credit));
+    }
     return absl::InvalidArgumentError(absl::StrCat("reward '", kind, "' does not support credit '",
-                                                   CreditName(config.credit), "'",
-                                                   kind == "eiti" || kind == "edti"
-                                                       ? " (its per-agent bonus is the method: use independent)"
-                                                       : ""));
+                                                   CreditName(config.credit), "' (it serves: none, ",
+                                                   absl::StrJoin(served, ", "), ")"));
   }
   return std::make_unique<CreditScorer>(*std::move(novelty), config, scenario.num_agents());
 }

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <vector>
 
+#include "common/status_macros.h"
+
 namespace imca::reward {
 
 CreditScorer::CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n)
@@ -11,54 +13,60 @@ CreditScorer::CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig&
 absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
   const int n = n_;
   const int64_t N = batch.size;
+  const float beta = static_cast<float>(config_.beta);
   if (config_.credit == Credit::kNone) {
-    WriteNoCredit(batch, n, out);
+    std::fill(out.global_rewards, out.global_rewards + N, 0.0f);
+    std::fill(out.contributions, out.contributions + N * n, 0.0f);
+    std::fill(out.agent_rewards, out.agent_rewards + N * n, 0.0f);
+    std::fill(out.shares, out.shares + N * n, 1.0f / n);
     if (out.influences != nullptr) std::fill(out.influences, out.influences + N * n * n, 0.0f);
     return absl::OkStatus();
   }
-  const bool imca = config_.credit == Credit::kImca;
-  const bool independent = config_.credit == Credit::kIndependent;
-  std::vector<float> joint(independent ? 0 : N), local(independent ? N * n : 0);
-  std::vector<double> divisor(imca ? N * n : 0, 1.0);
   NoveltyOutput novelty;
-  if (independent) {
-    novelty.local = local.data();
-  } else {
-    novelty.joint = joint.data();
-  }
-  if (imca) {
-    novelty.contributions = out.contributions;
-    novelty.agent_divisor = divisor.data();
-  }
   novelty.influences = out.influences;
-  if (absl::Status status = novelty_->Compute(batch, config_.credit, dry_run, novelty); !status.ok()) return status;
 
-  const float beta = static_cast<float>(config_.beta);
-  for (int64_t i = 0; i < N; ++i) {
-    float* contributions = out.contributions + i * n;
-    float* shares = out.shares + i * n;
-    float* rewards = out.agent_rewards + i * n;
-    if (imca) {
+  if (config_.credit == Credit::kIndependent) {
+    // The kind's local novelties land in contributions, reported as N_a.
+    novelty.local = out.contributions;
+    IMCA_RETURN_IF_ERROR(novelty_->Compute(batch, dry_run, novelty));
+    for (int64_t i = 0; i < N; ++i) {
+      const float* local = out.contributions + i * n;
+      float* rewards = out.agent_rewards + i * n;
+      float total = 0;
+      for (int a = 0; a < n; ++a) total += rewards[a] = beta * local[a];
+      out.global_rewards[i] = total;
+      for (int a = 0; a < n; ++a) out.shares[i * n + a] = total > 0 ? rewards[a] / total : 1.0f / n;
+    }
+    return absl::OkStatus();
+  }
+
+  std::vector<float> joint(N);
+  novelty.joint = joint.data();
+  if (config_.credit == Credit::kShared) {
+    IMCA_RETURN_IF_ERROR(novelty_->Compute(batch, dry_run, novelty));
+    for (int64_t i = 0; i < N; ++i) {
       out.global_rewards[i] = beta * joint[i];
-      SoftmaxShares(contributions, n, config_.temperature, shares);
       for (int a = 0; a < n; ++a) {
-        rewards[a] = static_cast<float>(shares[a] * out.global_rewards[i] / divisor[i * n + a]);
+        out.contributions[i * n + a] = 0;
+        out.agent_rewards[i * n + a] = out.global_rewards[i];
+        out.shares[i * n + a] = 1.0f / n;
       }
-      continue;
     }
-    float total = 0;
+    return absl::OkStatus();
+  }
+
+  // imca.
+  std::vector<double> divisor(N * n, 1.0);
+  novelty.contributions = out.contributions;
+  novelty.agent_divisor = divisor.data();
+  IMCA_RETURN_IF_ERROR(novelty_->Compute(batch, dry_run, novelty));
+  for (int64_t i = 0; i < N; ++i) {
+    out.global_rewards[i] = beta * joint[i];
+    float* shares = out.shares + i * n;
+    SoftmaxShares(out.contributions + i * n, n, config_.temperature, shares);
     for (int a = 0; a < n; ++a) {
-      if (independent) {
-        contributions[a] = local[i * n + a];
-        rewards[a] = beta * local[i * n + a];
-      } else {
-        contributions[a] = 0;
-        rewards[a] = beta * joint[i];
-      }
-      total += rewards[a];
+      out.agent_rewards[i * n + a] = static_cast<float>(shares[a] * out.global_rewards[i] / divisor[i * n + a]);
     }
-    out.global_rewards[i] = independent ? total : beta * joint[i];
-    for (int a = 0; a < n; ++a) shares[a] = independent && total > 0 ? rewards[a] / total : 1.0f / n;
   }
   return absl::OkStatus();
 }

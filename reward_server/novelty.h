@@ -43,11 +43,12 @@ class Novelty {
   virtual bool Supports(Credit credit) const = 0;
   // True if Compute writes NoveltyOutput::influences.
   virtual bool ReturnsInfluences() const { return false; }
-  // Computes what `credit` needs (see NoveltyOutput); unless dry_run, then
-  // updates counts/models. Does not fail on validated input; returns INTERNAL
-  // on an internal failure, with no state changed.
-  virtual absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                               const NoveltyOutput& out) = 0;
+  // Computes what the non-null arrays of `out` ask for (local for
+  // independent credit, else joint, with contributions for imca); unless
+  // dry_run, then updates counts/models. Does not fail on validated input;
+  // returns INTERNAL on an internal failure (including arrays the kind was
+  // not built for), with no state changed.
+  virtual absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) = 0;
   // Fills the kind-specific fields of `stats`.
   virtual void FillStats(v1::RewardStats* stats) const = 0;
   // Writes all learned state to `path` atomically (tmp file + rename).

@@ -315,15 +315,15 @@ absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenar
 RndNovelty::RndNovelty(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 RndNovelty::~RndNovelty() = default;
 
-absl::Status RndNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                                 const NoveltyOutput& out) {
+absl::Status RndNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   absl::MutexLock lock(&impl_->mu);
-  if (credit != impl_->config.credit) {
-    return absl::InternalError(absl::StrCat("rnd: built for credit ", CreditName(impl_->config.credit),
-                                            ", asked for ", CreditName(credit)));
+  const bool local = out.local != nullptr;
+  if (local ? !impl_->local : !impl_->joint) {
+    return absl::InternalError(absl::StrCat("rnd: no ", local ? "local" : "joint", " model in credit mode ",
+                                            CreditName(impl_->config.credit)));
   }
   try {
-    if (credit == Credit::kIndependent) {
+    if (local) {
       impl_->ComputeLocal(batch, dry_run, out);
     } else {
       impl_->ComputeJoint(batch, dry_run, out);

@@ -44,8 +44,7 @@ class RndNovelty final : public Novelty {
   ~RndNovelty() override;
 
   bool Supports(Credit credit) const override { return true; }
-  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                       const NoveltyOutput& out) override;
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;

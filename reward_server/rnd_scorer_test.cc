@@ -27,11 +27,8 @@ using Scored = ::imca::testing::ScoredBatch;
 class RndScorerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    auto map = env::GridMap::Parse("1..T2\n", "line");
-    ASSERT_TRUE(map.ok());
-    auto scenario = env::MakeScenarioWithMap(env::ScenarioConfig{}, *std::move(map));
-    ASSERT_TRUE(scenario.ok());
-    scenario_ = *std::move(scenario);
+    scenario_ = ::imca::testing::TextScenario();
+    ASSERT_NE(scenario_, nullptr);
   }
 
   Scored Score(Scorer& scorer, const std::vector<std::vector<int32_t>>& cells,

@@ -34,18 +34,7 @@ struct ScoreOutput {
   float* influences = nullptr;      // [N][n][n], c_{i->j}; only if the scorer ReturnsInfluences().
 };
 
-// Credit `none`: every output 0, shares 1/n.
-inline void WriteNoCredit(const TransitionBatch& batch, int n, const ScoreOutput& out) {
-  for (int64_t i = 0; i < batch.size; ++i) {
-    out.global_rewards[i] = 0;
-    for (int a = 0; a < n; ++a) {
-      out.contributions[i * n + a] = out.agent_rewards[i * n + a] = 0;
-      out.shares[i * n + a] = 1.0f / n;
-    }
-  }
-}
-
-// A global intrinsic reward with credit assignment (one per reward kind).
+// A global intrinsic reward with credit assignment (CreditScorer, novelty.h).
 // Implementations are thread-safe: concurrent Score calls are serialised, and
 // a batch's transitions are processed in order, each seeing the updates of the
 // ones before it.

@@ -18,6 +18,16 @@ namespace imca::testing {
 using reward::Scorer;
 using reward::TransitionBatch;
 
+// coop_nav's rules on a map given as text (default: a 5-cell line, agent 1
+// on cell 0, agent 2 on cell 4): the small scenario the scorer tests share.
+inline std::unique_ptr<env::Scenario> TextScenario(const char* map_text = "1..T2\n") {
+  auto map = env::GridMap::Parse(map_text, "line");
+  EXPECT_TRUE(map.ok()) << map.status();
+  auto scenario = env::MakeScenarioWithMap(env::ScenarioConfig{}, *std::move(map));
+  EXPECT_TRUE(scenario.ok()) << scenario.status();
+  return scenario.ok() ? *std::move(scenario) : nullptr;
+}
+
 // Reward kind K under the one credit rule, with K's test probes reachable.
 template <typename K>
 class Credited : public reward::CreditScorer {

@@ -266,15 +266,15 @@ absl::StatusOr<std::unique_ptr<SfNovelty>> SfNovelty::Create(const env::Scenario
 SfNovelty::SfNovelty(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 SfNovelty::~SfNovelty() = default;
 
-absl::Status SfNovelty::Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                                const NoveltyOutput& out) {
+absl::Status SfNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   absl::MutexLock lock(&impl_->mu);
-  if (credit != impl_->config.credit) {
-    return absl::InternalError(absl::StrCat("sf: built for credit ", CreditName(impl_->config.credit),
-                                            ", asked for ", CreditName(credit)));
+  const bool local = out.local != nullptr;
+  if (local ? !impl_->local : !impl_->joint) {
+    return absl::InternalError(absl::StrCat("sf: no ", local ? "local" : "joint", " model in credit mode ",
+                                            CreditName(impl_->config.credit)));
   }
   try {
-    if (credit == Credit::kIndependent) {
+    if (local) {
       impl_->ComputeLocal(batch, dry_run, out);
     } else {
       impl_->ComputeJoint(batch, dry_run, out);

@@ -42,8 +42,7 @@ class SfNovelty final : public Novelty {
   ~SfNovelty() override;
 
   bool Supports(Credit credit) const override { return true; }
-  absl::Status Compute(const TransitionBatch& batch, Credit credit, bool dry_run,
-                       const NoveltyOutput& out) override;
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   // Models only: episodic visit counts are transient and start afresh.
   absl::Status Save(const std::string& path) const override;

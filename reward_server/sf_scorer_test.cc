@@ -25,11 +25,8 @@ using Scored = ::imca::testing::ScoredBatch;
 class SfScorerTest : public ::testing::Test {
  protected:
   void Use(const char* map_text) {
-    auto map = env::GridMap::Parse(map_text, "line");
-    ASSERT_TRUE(map.ok());
-    auto scenario = env::MakeScenarioWithMap(env::ScenarioConfig{}, *std::move(map));
-    ASSERT_TRUE(scenario.ok());
-    scenario_ = *std::move(scenario);
+    scenario_ = ::imca::testing::TextScenario(map_text);
+    ASSERT_NE(scenario_, nullptr);
   }
   void SetUp() override { Use("1..T2\n"); }
 
