@@ -3,13 +3,29 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
+#include <random>
 
+#include <unistd.h>
+
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "common/atomic_file.h"
 #include "common/grpc_util.h"
 
 namespace imca::actor {
+namespace {
+
+uint64_t RandomIncarnation() {
+  std::random_device device;
+  uint64_t seed = (uint64_t{device()} << 32) ^ device() ^
+                  static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()) ^
+                  (static_cast<uint64_t>(getpid()) << 17);
+  const uint64_t value = Rng::SplitMix64(seed);
+  return value != 0 ? value : 1;
+}
+
+}  // namespace
 
 Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
              std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server)
@@ -20,7 +36,8 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
       reward_(v1::RewardService::NewStub(reward_server)),
       envs_(scenario, config.num_envs, config.seed),
       eval_envs_(scenario, std::max(config.eval_envs, 1), config.seed ^ 0xe7a1e7a1e7a1ULL),
-      rng_(config.seed * 7919 + 17) {
+      rng_(config.seed * 7919 + 17),
+      incarnation_(config.incarnation != 0 ? config.incarnation : RandomIncarnation()) {
   const int rows = std::max(config.num_envs, config.eval_envs) * scenario->num_agents();
   const int envs = std::max(config.num_envs, config.eval_envs);
   obs_.resize(static_cast<size_t>(rows) * featurizer_.obs_dim());
@@ -47,6 +64,7 @@ bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
       until_newer ? static_cast<int>(std::clamp<int64_t>(config_.rpc_timeout.count() / 2, 1, 5000)) : 0;
   Backoff backoff;
   while (!ShutdownRequested()) {
+    WriteStatus("waiting_policy", /*force=*/false);
     grpc::ClientContext context;
     context.set_deadline(DeadlineIn(config_.rpc_timeout));
     v1::GetPolicyRequest request;
@@ -116,6 +134,8 @@ void Actor::Rollout(v1::Unroll* u) {
   u->set_num_actions(a_count);
   u->set_state_size(k);
   u->set_scenario_fingerprint(scenario_->fingerprint());
+  u->set_incarnation(incarnation_);
+  u->set_sequence(++sequence_);
   u->mutable_states()->Reserve((T + 1) * E * k);
   u->mutable_next_states()->Reserve(T * E * k);
   u->mutable_actions()->Reserve(T * E * n);
@@ -206,12 +226,20 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     return status.ok() ? absl::UnavailableError("learner closed the stream") : FromGrpcStatus(status);
   }
   ++stream_unrolls_;
-  if (ack.accepted() || ack.error().rfind("stale", 0) == 0) return absl::OkStatus();
-  if (ack.error().rfind("ahead", 0) == 0) {
-    policy_.reset();  // The learner restarted from an older checkpoint.
-    return RefreshPolicy(/*wait=*/true) ? absl::OkStatus() : absl::UnavailableError("no policy");
+  switch (ack.rejection()) {
+    case v1::REJECTION_NONE:
+    case v1::REJECTION_STALE:      // Dropped and counted by the learner.
+    case v1::REJECTION_DUPLICATE:  // It had it already: the first ack was lost.
+      return absl::OkStatus();
+    case v1::REJECTION_AHEAD:
+      // The learner restarted from an older checkpoint: this unroll's policy
+      // is gone; act on with the learner's.
+      policy_.reset();
+      RefreshPolicy(/*wait=*/true);
+      return absl::OkStatus();
+    default:  // REJECTION_INVALID, REJECTION_OVER_CAP, or one this actor does not know.
+      return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack.error()));
   }
-  return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack.error()));
 }
 
 bool Actor::LearnerDone() {
@@ -222,41 +250,67 @@ bool Actor::LearnerDone() {
 }
 
 absl::Status Actor::Run() {
-  if (!RefreshPolicy(/*wait=*/true)) return policy_error_;
+  std::fprintf(stderr, "%s: incarnation %016llx\n", config_.actor_id.c_str(),
+               static_cast<unsigned long long>(incarnation_));
+  WriteStatus("waiting_policy", /*force=*/true);
+  if (!RefreshPolicy(/*wait=*/true)) {
+    WriteStatus("done", /*force=*/true);
+    return policy_error_;
+  }
   Backoff backoff;
   v1::Unroll unroll;  // Reused: Clear() keeps the packed fields' capacity.
+  // The unroll in hand: acted, and scored (or not yet), not yet delivered.
+  bool in_hand = false, scored = false, sent_once = false;
   while (!ShutdownRequested()) {
-    if (!policy_.has_value() && !RefreshPolicy(/*wait=*/true)) break;
-    unroll.Clear();
-    Rollout(&unroll);
-    absl::Status status = Score(&unroll);
-    if (!config_.trace_file.empty()) {
-      if (status.ok()) {
-        Trace(unroll);
-      } else {
-        trace_gap_ = true;  // Env 0's episode lost these steps.
+    if (!in_hand) {
+      if (!policy_.has_value() && !RefreshPolicy(/*wait=*/true)) break;
+      unroll.Clear();
+      Rollout(&unroll);
+      in_hand = true;
+      scored = false;
+      sent_once = false;
+    }
+    absl::Status status;
+    if (!scored) {
+      status = Score(&unroll);
+      scored = status.ok();
+      if (scored) {
+        transitions_scored_ += int64_t{unroll.length()} * unroll.num_envs();
+        if (!config_.trace_file.empty()) Trace(unroll);
       }
     }
-    if (status.ok()) status = Push(&unroll);
+    if (scored) {
+      if (sent_once) ++unrolls_resent_;
+      sent_once = true;
+      status = Push(&unroll);
+    }
     if (status.ok()) {
+      in_hand = false;
       ++unrolls_pushed_;
       ++version_unrolls_;
       backoff.Reset();
+      WriteStatus("acting", /*force=*/false);
     } else if (absl::IsInvalidArgument(status)) {
       // A bug, not a transient fault: say so loudly and stop.
+      WriteStatus("done", /*force=*/true);
       return status;
     } else if (absl::IsOutOfRange(status)) {
       break;  // The learner's budget is done.
     } else {
+      // Keep the unroll: score it again if it has no answer yet, resend it
+      // if it has no ack.
       std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
                    std::string(status.message()).c_str());
+      WriteStatus("retrying", /*force=*/false);
       if (LearnerDone()) break;
       backoff.Wait();
+      continue;
     }
     const int64_t acted = policy_.has_value() ? policy_->version() : -1;
     if (config_.sync_unrolls > 0 && version_unrolls_ >= config_.sync_unrolls) {
       // Synchronous: this version's share is delivered; act next with the
       // policy the learner trains on it.
+      WriteStatus("waiting_policy", /*force=*/false);
       if (!AwaitPolicy(acted + 1)) {
         if (!policy_error_.ok()) return policy_error_;
         break;
@@ -269,7 +323,25 @@ absl::Status Actor::Run() {
   }
   CloseStream();
   if (!config_.trace_file.empty()) WriteTrace();
+  WriteStatus("done", /*force=*/true);
   return absl::OkStatus();
+}
+
+void Actor::WriteStatus(const char* state, bool force) {
+  if (config_.status_file.empty()) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (!force && now - status_written_ < config_.status_period) return;
+  status_written_ = now;
+  const double time = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const absl::Status written = WriteFileAtomically(
+      config_.status_file,
+      absl::StrFormat("{\"actor_id\": \"%s\", \"incarnation\": \"%016x\", \"unrolls_pushed\": %d, "
+                      "\"unrolls_resent\": %d, \"transitions_scored\": %d, \"state\": \"%s\", \"time\": %.3f}\n",
+                      absl::CEscape(config_.actor_id), incarnation_, unrolls_pushed_, unrolls_resent_,
+                      transitions_scored_, state, time));
+  if (!written.ok()) {
+    std::fprintf(stderr, "%s: status: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
+  }
 }
 
 void Actor::Trace(const v1::Unroll& u) {
@@ -311,19 +383,12 @@ void Actor::Trace(const v1::Unroll& u) {
 void Actor::WriteTrace() {
   trace_written_ = std::chrono::steady_clock::now();
   if (trace_last_.empty()) return;
-  const std::string tmp = config_.trace_file + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    out << "episode,t,agent,cell,next_cell,action,share,contribution,agent_reward,global_reward\n" << trace_last_;
-    out.close();
-    if (out.fail()) {
-      std::fprintf(stderr, "%s: cannot write %s\n", config_.actor_id.c_str(), tmp.c_str());
-      std::remove(tmp.c_str());
-      return;
-    }
-  }
-  if (std::rename(tmp.c_str(), config_.trace_file.c_str()) != 0) {
-    std::fprintf(stderr, "%s: cannot rename %s\n", config_.actor_id.c_str(), tmp.c_str());
+  const absl::Status written = WriteFileAtomically(
+      config_.trace_file,
+      absl::StrCat("episode,t,agent,cell,next_cell,action,share,contribution,agent_reward,global_reward\n",
+                   trace_last_));
+  if (!written.ok()) {
+    std::fprintf(stderr, "%s: trace: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
   }
 }
 

@@ -43,13 +43,27 @@ struct ActorConfig {
   // acted with one policy version, wait for a newer version before acting
   // again. 0: asynchronous, never wait.
   int sync_unrolls = 0;
+  // This process's incarnation (Unroll.incarnation); 0: draw a random one.
+  uint64_t incarnation = 0;
+  // If set, a one-line JSON progress record is written here (atomically) at
+  // most every status_period and when Run() returns, for a supervisor:
+  // {"actor_id", "incarnation", "unrolls_pushed", "unrolls_resent",
+  //  "transitions_scored", "state": "acting"|"waiting_policy"|"retrying"|"done",
+  //  "time": seconds since the epoch}.
+  std::string status_file;
+  std::chrono::milliseconds status_period{1000};
 };
 
 // Steps vectorised environments with a local copy of the newest policy, gets
 // each unroll's per-agent intrinsic rewards from the reward server (one Score
 // call per unroll) and streams the unroll to the learner. Every call has a
 // deadline; UNAVAILABLE / DEADLINE_EXCEEDED lead to a reconnect with
-// exponential backoff. Not thread-safe: one thread calls Run().
+// exponential backoff, and the unroll in hand is kept and sent again (its
+// Score retried if it had no answer, its push resent under the same
+// incarnation and sequence number if it had no ack: the learner drops a
+// resend it already accepted). So a restart of the reward server or the
+// learner loses none of this actor's data, and this actor's own death loses
+// at most the unroll in hand. Not thread-safe: one thread calls Run().
 class Actor {
  public:
   Actor(const env::Scenario* scenario, const ActorConfig& config,
@@ -61,6 +75,9 @@ class Actor {
   absl::Status Run();
 
   int64_t unrolls_pushed() const { return unrolls_pushed_; }
+  // Pushes sent again after a lost stream.
+  int64_t unrolls_resent() const { return unrolls_resent_; }
+  uint64_t incarnation() const { return incarnation_; }
 
  private:
   // Fetches a newer policy if there is one. With `wait`, retries until one
@@ -82,7 +99,15 @@ class Actor {
                      float* probs);
   absl::Status Score(v1::Unroll* unroll);
   // Sends *unroll (moved in and back out, not copied) and waits for its ack.
+  // OK when the learner has it or dropped it for good (stale, a duplicate,
+  // or acted with a policy the learner no longer has); UNAVAILABLE (and
+  // other transport errors) when it must be sent again; INVALID_ARGUMENT
+  // when the learner refuses it as invalid or over its cap; OUT_OF_RANGE
+  // once the learner is done.
   absl::Status Push(v1::Unroll* unroll);
+  // Writes config_.status_file if status_period has passed since the last
+  // write (or `force`).
+  void WriteStatus(const char* state, bool force);
   void CloseStream();
   bool LearnerDone();
   // Appends env 0's scored steps of `unroll` to the episode trace.
@@ -103,7 +128,12 @@ class Actor {
   std::unique_ptr<grpc::ClientContext> stream_context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::PushUnrollsRequest, v1::PushUnrollsResponse>> stream_;
   int stream_unrolls_ = 0;
+  const uint64_t incarnation_;
+  int64_t sequence_ = 0;  // Of the newest unroll acted.
   int64_t unrolls_pushed_ = 0;
+  int64_t unrolls_resent_ = 0;
+  int64_t transitions_scored_ = 0;
+  std::chrono::steady_clock::time_point status_written_{};
   int version_unrolls_ = 0;  // Unrolls pushed with the current policy version.
 
   // Scratch buffers, sized once.

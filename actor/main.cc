@@ -30,6 +30,8 @@ ABSL_FLAG(int, signal_exit_code, 0,
 ABSL_FLAG(int, sync_unrolls, 0,
           "synchronous collection (learner --synchronous): act this many unrolls with each policy "
           "version, then wait for the next version (0: asynchronous)");
+ABSL_FLAG(std::string, status_file, "",
+          "if set, write a one-line JSON progress record here every second (for a supervisor; docs/reliability.md)");
 ABSL_FLAG(std::string, trace_file, "",
           "if set, write env 0's newest finished training episode with its credit shares here (CSV)");
 
@@ -65,6 +67,7 @@ int main(int argc, char** argv) {
   }
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
   config.trace_file = absl::GetFlag(FLAGS_trace_file);
+  config.status_file = absl::GetFlag(FLAGS_status_file);
   const int signal_exit_code = absl::GetFlag(FLAGS_signal_exit_code);
   if (signal_exit_code < 0 || signal_exit_code > 255) return fail("--signal_exit_code must be in [0, 255]");
   if (config.num_envs < 1) return fail("--envs must be >= 1");

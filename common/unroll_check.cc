@@ -1,5 +1,6 @@
 #include "common/unroll_check.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
@@ -26,6 +27,21 @@ absl::Status CheckFinite(const Field& field, const char* name) {
   }
   return absl::OkStatus();
 }
+
+template <typename Field>
+absl::Status CheckMagnitude(const Field& field, const char* name) {
+  for (int i = 0; i < field.size(); ++i) {
+    if (std::abs(field[i]) > kMaxAbsReward) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("unroll.", name, "[", i, "]: ", field[i], " is outside [-1e6, 1e6]"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// Relative tolerance between a recorded log-probability and the log of the
+// recorded probability (float rounding on either side).
+constexpr double kLogProbTolerance = 1e-3;
 
 absl::Status CheckStates(const google::protobuf::RepeatedField<int32_t>& states, const char* name,
                          int64_t count, const env::Scenario& scenario) {
@@ -106,11 +122,22 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
     IMCA_RETURN_IF_ERROR(CheckSize(u.terminated(), "terminated", transitions));
     IMCA_RETURN_IF_ERROR(CheckSize(u.truncated(), "truncated", transitions));
     IMCA_RETURN_IF_ERROR(CheckFinite(u.rewards(), "rewards"));
+    IMCA_RETURN_IF_ERROR(CheckMagnitude(u.rewards(), "rewards"));
     for (int i = 0; i < u.behaviour_log_probs_size(); ++i) {
       const float lp = u.behaviour_log_probs(i);
       if (!std::isfinite(lp) || lp > 1e-4f) {
         return absl::InvalidArgumentError(
             absl::StrCat("unroll.behaviour_log_probs[", i, "]: ", lp, " is not a log-probability"));
+      }
+      // The log of the recorded probability of the recorded action (floored
+      // at 1e-12 as the actor does): anything else would make the PPO ratio
+      // meaningless.
+      const float p = u.action_probs(int64_t{i} * a_count + u.actions(i));
+      const double expected = std::log(std::max(static_cast<double>(p), 1e-12));
+      if (std::abs(lp - expected) > kLogProbTolerance * std::max(1.0, std::abs(expected))) {
+        return absl::InvalidArgumentError(absl::StrCat("unroll.behaviour_log_probs[", i, "]: ", lp,
+                                                       " is not the log of action_probs[", int64_t{i} * a_count +
+                                                       u.actions(i), "] = ", p, " (", expected, ")"));
       }
     }
   }
@@ -121,6 +148,7 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
   if (needs.intrinsic_rewards) {
     IMCA_RETURN_IF_ERROR(CheckSize(u.intrinsic_rewards(), "intrinsic_rewards", transitions * n));
     IMCA_RETURN_IF_ERROR(CheckFinite(u.intrinsic_rewards(), "intrinsic_rewards"));
+    IMCA_RETURN_IF_ERROR(CheckMagnitude(u.intrinsic_rewards(), "intrinsic_rewards"));
     if (u.credit_shares_size() != 0) {
       IMCA_RETURN_IF_ERROR(CheckSize(u.credit_shares(), "credit_shares", transitions * n));
     }

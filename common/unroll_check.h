@@ -16,12 +16,18 @@ struct UnrollNeeds {
 
 // Largest number of transitions (T*E) one message may carry.
 inline constexpr int kMaxTransitions = 65536;
+// Largest |reward| (extrinsic or intrinsic) an unroll may carry: well above
+// any scenario's (pass pays 1000) and any bonus, far below what would make
+// returns overflow a float.
+inline constexpr float kMaxAbsReward = 1e6f;
 
 // Checks an Unroll against the scenario it claims to come from: scenario name,
 // fingerprint (unless 0), agent/action counts and state size; T, E >= 1 and T*E <= kMaxTransitions;
 // every packed field's length; actions in [0, A); every state a valid state of
 // the scenario; action_probs finite, in [0,1] and each row summing to 1 within
-// 1e-3. Returns INVALID_ARGUMENT whose message names the field and element
+// 1e-3; with `rewards`, each behaviour log-probability the log of the
+// recorded probability of the recorded action (floored at 1e-12, within a
+// relative 1e-3); rewards within kMaxAbsReward. Returns INVALID_ARGUMENT whose message names the field and element
 // (e.g. "unroll.actions[12]: 7 not in [0, 5)"). Pure; thread-safe.
 absl::Status ValidateUnroll(const v1::Unroll& unroll, const env::Scenario& scenario,
                             const UnrollNeeds& needs);

@@ -1,12 +1,16 @@
 #include "learner/learner.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <limits>
+#include <sstream>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "common/atomic_file.h"
 #include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "learner/lap.h"
@@ -120,7 +124,7 @@ absl::Status Learner::Push(v1::Unroll unroll) {
     // batch_steps - 1 steps plus this unroll.
     const int64_t steps = int64_t{unroll.length()} * unroll.num_envs();
     if (const int64_t bytes = IterationBytes(config_.batch_steps - 1 + steps); bytes > config_.max_batch_bytes) {
-      valid = absl::InvalidArgumentError(absl::StrFormat(
+      valid = absl::ResourceExhaustedError(absl::StrFormat(
           "unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of features here, "
           "over the learner's cap of %.0f MB (use fewer envs or a shorter unroll)",
           steps, bytes / 1e6, config_.max_batch_bytes / 1e6));
@@ -139,15 +143,29 @@ absl::Status Learner::Push(v1::Unroll unroll) {
   // thread only computes values and GAE and trains.
   QueuedUnroll queued = Featurise(std::move(unroll));
   absl::MutexLock lock(&mu_);
+  ++pushers_waiting_;
   mu_.Await(absl::Condition(
       +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
         return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
       },
       this));
+  --pushers_waiting_;
   if (stopping_) return StoppedStatus();
   const v1::Unroll& u = queued.unroll;
   ++unrolls_received_;
   actors_.insert(u.actor_id());
+  if (u.incarnation() != 0) {
+    auto [it, inserted] = accepted_.try_emplace(u.actor_id(), Accepted{u.incarnation(), u.sequence()});
+    if (inserted || it->second.incarnation != u.incarnation()) {
+      ++actor_incarnations_;
+      if (!inserted) {
+        std::fprintf(stderr, "learner: %s restarted (incarnation %016llx, was %016llx)\n", u.actor_id().c_str(),
+                     static_cast<unsigned long long>(u.incarnation()),
+                     static_cast<unsigned long long>(it->second.incarnation));
+      }
+    }
+    it->second = Accepted{u.incarnation(), u.sequence()};
+  }
   for (int i = 0; i < u.episode_returns_size(); ++i) {
     PushWindow(&train_returns_, u.episode_returns(i), config_.metrics_window);
   }
@@ -160,11 +178,20 @@ absl::Status Learner::Push(v1::Unroll unroll) {
 
 absl::Status Learner::Admit(const v1::Unroll& unroll) {
   if (stopping_) return StoppedStatus();
+  if (unroll.incarnation() != 0) {
+    auto it = accepted_.find(unroll.actor_id());
+    if (it != accepted_.end() && it->second.incarnation == unroll.incarnation() &&
+        unroll.sequence() <= it->second.sequence) {
+      ++unrolls_duplicate_;
+      return absl::AlreadyExistsError(absl::StrCat("duplicate: unroll ", unroll.sequence(), " of ",
+                                                   unroll.actor_id(), " was accepted before"));
+    }
+  }
   if (unroll.policy_version() > version_) {
     // A learner restarted from an older checkpoint: the actor must refetch.
     ++unrolls_rejected_;
-    return absl::FailedPreconditionError(absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
-                                                      " is newer than the learner's ", version_));
+    return absl::AbortedError(absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
+                                           " is newer than the learner's ", version_));
   }
   if (config_.synchronous) {
     if (unroll.policy_version() != version_) {
@@ -250,6 +277,16 @@ v1::LearnerStatus Learner::Status() const {
   status.set_episode_return(Mean(train_returns_));
   status.set_intrinsic_reward(last_intrinsic_);
   status.set_done(done_);
+  status.set_batches_dropped(batches_dropped_);
+  status.set_queue_depth(static_cast<int32_t>(queue_.size()));
+  // Exact: a pusher whose Await does not block holds mu_ from its increment
+  // to its decrement, so only blocked pushers are ever seen.
+  status.set_pushers_waiting(static_cast<int32_t>(pushers_waiting_));
+  status.set_seconds_stalled(
+      queue_.empty() ? 0.0 : std::chrono::duration<double>(std::chrono::steady_clock::now() - last_progress_).count());
+  status.set_unrolls_duplicate(unrolls_duplicate_);
+  status.set_actor_incarnations(actor_incarnations_);
+  status.set_minibatches_skipped(minibatches_skipped_);
   for (const std::string& actor : actors_) status.add_actors_seen(actor);
   return status;
 }
@@ -270,6 +307,7 @@ std::optional<Learner::QueuedUnroll> Learner::NextUnroll() {
     if (stopping_) return std::nullopt;
     QueuedUnroll queued = std::move(queue_.front());
     queue_.pop_front();
+    last_progress_ = std::chrono::steady_clock::now();
     queued_steps_ -= Steps(queued.unroll);
     if (version_ - queued.unroll.policy_version() > config_.max_policy_lag) {
       ++unrolls_stale_;
@@ -306,7 +344,9 @@ absl::Status Learner::Run() {
     }
     if (steps < config_.batch_steps) break;
     IMCA_RETURN_IF_ERROR(TrainOn(unrolls, batch));
-    if (config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) {
+    if ((config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) ||
+        (config_.checkpoint_seconds > 0 &&
+         Clock::now() - last_checkpoint_ >= std::chrono::duration<double>(config_.checkpoint_seconds))) {
       IMCA_RETURN_IF_ERROR(SaveCheckpoint());
     }
   }
@@ -437,7 +477,27 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
 }
 
 absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoBatch& batch) {
-  IMCA_ASSIGN_OR_RETURN(PpoStats stats, trainer_->Train(batch));
+  absl::StatusOr<PpoStats> trained = trainer_->Train(batch);
+  PpoStats stats;
+  if (trained.ok()) {
+    stats = *std::move(trained);
+    if (stats.minibatches_skipped > 0) {
+      std::fprintf(stderr, "learner: iteration %lld: %lld minibatches took no step (%s)\n",
+                   static_cast<long long>(iteration_ + 1), static_cast<long long>(stats.minibatches_skipped),
+                   stats.skip_reason.c_str());
+    }
+  } else if (absl::IsInvalidArgument(trained.status())) {
+    // A batch the trainer refuses (e.g. an advantage that overflowed from
+    // validated but extreme unrolls) never ends training: it is dropped and
+    // counted, and the same weights are published as the next version so
+    // that synchronous actors move on.
+    std::fprintf(stderr, "learner: iteration %lld: %s\n", static_cast<long long>(iteration_ + 1),
+                 std::string(trained.status().message()).c_str());
+    absl::MutexLock lock(&mu_);
+    ++batches_dropped_;
+  } else {
+    return trained.status();
+  }
   ++iteration_;
   int64_t steps = 0;
   double lag = 0;
@@ -454,12 +514,17 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoB
   {
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
+    minibatches_skipped_ += stats.minibatches_skipped;
     last_intrinsic_ = credit.intrinsic;
   }
   Clock::time_point lap = Clock::now();
   Publish();
   phases_.publish = Lap(lap);
-  WriteMetricsRow(stats, lag, credit);
+  // A metrics row that cannot be written is reported (once per run of
+  // failures) but does not stop training: the checkpoints still hold it all.
+  const absl::Status written = WriteMetricsRow(stats, lag, credit);
+  if (!written.ok() && metrics_ok_) std::fprintf(stderr, "learner: %s\n", std::string(written.message()).c_str());
+  metrics_ok_ = written.ok();
   return absl::OkStatus();
 }
 
@@ -493,13 +558,14 @@ Learner::CreditStats Learner::MeasureCredit(const std::vector<v1::Unroll>& unrol
 
 void Learner::Publish() {
   absl::MutexLock lock(&mu_);
+  last_progress_ = std::chrono::steady_clock::now();
   if (policy_ != nullptr) ++version_;
   version_steps_ = 0;
   policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
 }
 
-void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit) {
-  if (config_.run_dir.empty()) return;
+absl::Status Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit) {
+  if (config_.run_dir.empty()) return absl::OkStatus();
   if (!metrics_.is_open()) {
     const fs::path path = fs::path(config_.run_dir) / "metrics.csv";
     std::string header = kMetricsHeader;
@@ -543,32 +609,41 @@ void Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditSta
   for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
   metrics_ << "\n";
   metrics_.flush();
+  if (!metrics_) {
+    // Reopened (and appended to) on the next row.
+    metrics_.close();
+    metrics_.clear();
+    return absl::InternalError(absl::StrCat("cannot write ", (fs::path(config_.run_dir) / "metrics.csv").string(),
+                                            ": ", std::strerror(errno)));
+  }
+  return absl::OkStatus();
 }
 
 absl::Status Learner::SaveCheckpoint() {
+  last_checkpoint_ = Clock::now();
   if (config_.run_dir.empty()) return absl::OkStatus();
   const fs::path dir = fs::path(config_.run_dir) / "checkpoints";
   const v1::LearnerStatus s = Status();
   const std::string stem = absl::StrFormat("ckpt-%08d", s.policy_version());
+  // The .pt first, then its .meta: the .meta is the marker that the
+  // checkpoint is complete (NewestCheckpoint reads only checkpoints that
+  // have one), and each file is written whole or not at all.
   IMCA_RETURN_IF_ERROR(trainer_->Save((dir / (stem + ".pt")).string()));
+  std::string meta = absl::StrCat("version ", s.policy_version(), "\nenv_steps ", s.env_steps(), "\nwall_seconds ",
+                                  s.wall_seconds(), "\niteration ", iteration_, "\n");
   {
-    std::ofstream meta(dir / (stem + ".meta.tmp"));
-    meta << "version " << s.policy_version() << "\nenv_steps " << s.env_steps() << "\nwall_seconds "
-         << s.wall_seconds() << "\niteration " << iteration_ << "\n";
-    if (!meta) return absl::InternalError("cannot write checkpoint metadata");
-  }
-  std::error_code error;
-  fs::rename(dir / (stem + ".meta.tmp"), dir / (stem + ".meta"), error);
-  if (error) return absl::InternalError(absl::StrCat("checkpoint rename: ", error.message()));
-  // The newest policy as a serialized imca.v1.Policy, for tools in any language.
-  {
-    std::ofstream out(fs::path(config_.run_dir) / "policy.pb.tmp", std::ios::binary | std::ios::trunc);
-    if (!CurrentPolicy()->SerializeToOstream(&out) || !out.flush()) {
-      return absl::InternalError("cannot write policy.pb");
+    // The newest accepted unroll of each actor incarnation, so that a
+    // restarted learner still recognises resends.
+    absl::MutexLock lock(&mu_);
+    for (const auto& [actor, accepted] : accepted_) {
+      absl::StrAppend(&meta, "accepted ", accepted.incarnation, " ", accepted.sequence, " ", actor, "\n");
     }
   }
-  fs::rename(fs::path(config_.run_dir) / "policy.pb.tmp", fs::path(config_.run_dir) / "policy.pb", error);
-  if (error) return absl::InternalError(absl::StrCat("policy.pb rename: ", error.message()));
+  IMCA_RETURN_IF_ERROR(WriteFileAtomically((dir / (stem + ".meta")).string(), meta));
+  // The newest policy as a serialized imca.v1.Policy, for tools in any language.
+  IMCA_RETURN_IF_ERROR(WriteFileAtomically((fs::path(config_.run_dir) / "policy.pb").string(),
+                                           CurrentPolicy()->SerializeAsString()));
+  std::error_code error;
   // Keep the newest few.
   std::vector<fs::path> metas;
   for (const auto& entry : fs::directory_iterator(dir)) {
@@ -584,7 +659,11 @@ absl::Status Learner::SaveCheckpoint() {
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir) {
+namespace {
+
+// The complete checkpoints of `checkpoint_dir` (those with a .meta), newest
+// first. Errors: INTERNAL if it cannot be read.
+absl::StatusOr<std::vector<fs::path>> CompleteCheckpoints(const std::string& checkpoint_dir) {
   std::vector<fs::path> metas;
   std::error_code error;
   for (const auto& entry : fs::directory_iterator(checkpoint_dir, error)) {
@@ -594,21 +673,58 @@ absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir) 
     // Unreadable is not "no checkpoint": starting fresh would lose the run.
     return absl::InternalError(absl::StrCat("cannot read ", checkpoint_dir, ": ", error.message()));
   }
+  std::sort(metas.rbegin(), metas.rend());
+  return metas;
+}
+
+}  // namespace
+
+absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir) {
+  IMCA_ASSIGN_OR_RETURN(const std::vector<fs::path> metas, CompleteCheckpoints(checkpoint_dir));
   if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
-  return std::max_element(metas.begin(), metas.end())->string();
+  return metas.front().string();
 }
 
 absl::Status Learner::Restore(const std::string& checkpoint_dir) {
-  IMCA_ASSIGN_OR_RETURN(const std::string meta_path, NewestCheckpoint(checkpoint_dir));
+  IMCA_ASSIGN_OR_RETURN(const std::vector<fs::path> metas, CompleteCheckpoints(checkpoint_dir));
+  if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
+  absl::Status newest_error;
+  for (const fs::path& meta : metas) {
+    const absl::Status restored = RestoreFrom(meta.string());
+    if (restored.ok()) {
+      if (!newest_error.ok()) {
+        std::fprintf(stderr, "learner: restored the older checkpoint %s instead (%s)\n", meta.c_str(),
+                     std::string(newest_error.message()).c_str());
+      }
+      return absl::OkStatus();
+    }
+    // A damaged file (the disk, not a crash mid-write: every file is
+    // written atomically) costs one checkpoint interval, not the run.
+    if (newest_error.ok()) newest_error = restored;
+  }
+  return newest_error;
+}
+
+absl::Status Learner::RestoreFrom(const std::string& meta_path) {
   std::ifstream meta(meta_path);
-  std::string key;
   int64_t version = -1, env_steps = -1, iteration = 0;
   double wall = 0;
-  while (meta >> key) {
-    if (key == "version") meta >> version;
-    else if (key == "env_steps") meta >> env_steps;
-    else if (key == "wall_seconds") meta >> wall;
-    else if (key == "iteration") meta >> iteration;
+  absl::flat_hash_map<std::string, Accepted> accepted;
+  for (std::string line; std::getline(meta, line);) {
+    std::istringstream fields(line);
+    std::string key;
+    fields >> key;
+    if (key == "version") fields >> version;
+    else if (key == "env_steps") fields >> env_steps;
+    else if (key == "wall_seconds") fields >> wall;
+    else if (key == "iteration") fields >> iteration;
+    else if (key == "accepted") {
+      Accepted a;
+      std::string actor;
+      if (fields >> a.incarnation >> a.sequence && fields.get() == ' ' && std::getline(fields, actor)) {
+        accepted[actor] = a;
+      }
+    }
   }
   if (version < 0 || env_steps < 0) {
     return absl::InvalidArgumentError(absl::StrCat("bad checkpoint metadata ", meta_path));
@@ -621,6 +737,7 @@ absl::Status Learner::Restore(const std::string& checkpoint_dir) {
   absl::MutexLock lock(&mu_);
   version_ = version;
   env_steps_ = env_steps;
+  accepted_ = std::move(accepted);
   policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
   return absl::OkStatus();
 }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
+#include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
@@ -71,7 +72,11 @@ struct LearnerConfig {
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
   int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
   std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
-  int checkpoint_every = 50;      // Iterations between checkpoints (0: only at the end).
+  // A checkpoint is written every checkpoint_every iterations and whenever
+  // checkpoint_seconds have passed since the last one (0 turns either off),
+  // and at the end: a killed learner loses at most that much training.
+  int checkpoint_every = 50;
+  double checkpoint_seconds = 30;
   int metrics_window = 200;       // Episodes in the success-rate / return windows.
   // Cap on an iteration's feature arrays (policy and critic inputs, and the
   // trainer's copy of them; see Learner::IterationBytes). Create() rejects a
@@ -93,13 +98,21 @@ class Learner {
 
   // Validates `unroll`, featurises it on the calling thread and queues it for
   // training; blocks while the queue is full (back-pressure). Returns OK when
-  // queued; INVALID_ARGUMENT naming the field; FAILED_PRECONDITION "stale ..."
-  // when it is more than max_policy_lag versions old, or (synchronous) not of
-  // the current version or beyond its full batch (counted, dropped), or
-  // "ahead ..." when its version is newer
-  // than the learner's (a learner resumed from an older checkpoint: refetch
-  // the policy); OUT_OF_RANGE once the budget is done; UNAVAILABLE once the
-  // learner is stopping for another reason.
+  // queued; otherwise one code per reason, each counted and mapped one to
+  // one onto v1::Rejection by the service:
+  //   INVALID_ARGUMENT naming the field (REJECTION_INVALID);
+  //   RESOURCE_EXHAUSTED: a batch with it would exceed max_batch_bytes
+  //     (REJECTION_OVER_CAP);
+  //   FAILED_PRECONDITION: more than max_policy_lag versions old, or
+  //     (synchronous) not of the current version or beyond its full batch
+  //     (REJECTION_STALE);
+  //   ABORTED: its version is newer than the learner's, a learner resumed from
+  //     an older checkpoint; refetch the policy (REJECTION_AHEAD);
+  //   ALREADY_EXISTS: its (actor_id, incarnation, sequence) is not newer than
+  //     that actor incarnation's last accepted unroll, a resend
+  //     (REJECTION_DUPLICATE);
+  //   OUT_OF_RANGE once the budget is done; UNAVAILABLE once the learner is
+  //     stopping for another reason (both end the stream).
   absl::Status Push(v1::Unroll unroll);
 
   // The newest published policy (never null after Create).
@@ -128,7 +141,10 @@ class Learner {
   int64_t IterationBytes(int64_t steps) const;
 
   // Restores trainer, version and counters from a checkpoint directory's
-  // newest checkpoint. Call before Run(). Errors: NOT_FOUND, INVALID_ARGUMENT.
+  // newest complete checkpoint (one with its .meta), or, if that one cannot
+  // be read, from the newest older one that can. Call before Run(). Errors:
+  // NOT_FOUND (none), or the newest checkpoint's error if none loads
+  // (INVALID_ARGUMENT: it does not fit this configuration; INTERNAL).
   absl::Status Restore(const std::string& checkpoint_dir);
   // Writes a checkpoint now (from the training thread only), and the current
   // policy as <run_dir>/policy.pb (a serialized imca.v1.Policy).
@@ -148,6 +164,8 @@ class Learner {
 
   // Push's checks of version, staleness and stopping; counts what it refuses.
   absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Restore() of one checkpoint, by its .meta file.
+  absl::Status RestoreFrom(const std::string& meta_path);
   QueuedUnroll Featurise(v1::Unroll unroll) const;
   // Waits for the next queued unroll that is not stale (dropping and counting
   // stale ones); nullopt once stopping.
@@ -173,7 +191,8 @@ class Learner {
     std::vector<double> shares;   // p^a per agent slot.
   };
   CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
-  void WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit);
+  // Appends a row to <run_dir>/metrics.csv. Errors: INTERNAL if it cannot be written.
+  absl::Status WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit);
 
   const env::Scenario* scenario_;
   const LearnerConfig config_;
@@ -181,6 +200,9 @@ class Learner {
   std::unique_ptr<PpoTrainer> trainer_;  // Training thread only.
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::ofstream metrics_;                // Training thread only.
+  bool metrics_ok_ = true;               // Training thread only: the last row was written.
+  // When the last checkpoint was written (training thread only).
+  std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   int64_t iteration_ = 0;                // Training thread only.
   // Wall seconds of the current iteration's phases (training thread only):
   // waiting for unrolls, featurising the batch's unrolls (on the pushing
@@ -208,6 +230,20 @@ class Learner {
   int64_t unrolls_received_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t unrolls_stale_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t unrolls_rejected_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t batches_dropped_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t pushers_waiting_ ABSL_GUARDED_BY(mu_) = 0;  // Pushes blocked in the wait for room.
+  // The training thread's last dequeue or publication.
+  std::chrono::steady_clock::time_point last_progress_ ABSL_GUARDED_BY(mu_) = std::chrono::steady_clock::now();
+  int64_t unrolls_duplicate_ ABSL_GUARDED_BY(mu_) = 0;
+  int64_t actor_incarnations_ ABSL_GUARDED_BY(mu_) = 0;
+  // The newest accepted unroll of each actor (by actor_id): its incarnation
+  // and sequence number. Saved with each checkpoint.
+  struct Accepted {
+    uint64_t incarnation = 0;
+    int64_t sequence = 0;
+  };
+  absl::flat_hash_map<std::string, Accepted> accepted_ ABSL_GUARDED_BY(mu_);
+  int64_t minibatches_skipped_ ABSL_GUARDED_BY(mu_) = 0;
   bool done_ ABSL_GUARDED_BY(mu_) = false;
   std::set<std::string> actors_ ABSL_GUARDED_BY(mu_);
   std::deque<bool> eval_success_ ABSL_GUARDED_BY(mu_);

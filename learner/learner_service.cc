@@ -8,6 +8,18 @@ namespace {
 
 constexpr int kMaxPolicyWaitMs = 60000;
 
+// Learner::Push's refusal codes, one per reason (learner.h).
+v1::Rejection RejectionOf(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kOk: return v1::REJECTION_NONE;
+    case absl::StatusCode::kFailedPrecondition: return v1::REJECTION_STALE;
+    case absl::StatusCode::kAborted: return v1::REJECTION_AHEAD;
+    case absl::StatusCode::kResourceExhausted: return v1::REJECTION_OVER_CAP;
+    case absl::StatusCode::kAlreadyExists: return v1::REJECTION_DUPLICATE;
+    default: return v1::REJECTION_INVALID;
+  }
+}
+
 }  // namespace
 
 grpc::Status LearnerServiceImpl::PushUnrolls(
@@ -20,6 +32,7 @@ grpc::Status LearnerServiceImpl::PushUnrolls(
     if (absl::IsUnavailable(status) || absl::IsOutOfRange(status)) return ToGrpcStatus(status);
     v1::PushUnrollsResponse ack;
     ack.set_accepted(status.ok());
+    ack.set_rejection(RejectionOf(status));
     if (!status.ok()) ack.set_error(std::string(status.message()));
     ack.set_policy_version(learner_->CurrentPolicy()->version());
     if (!stream->Write(ack)) break;

@@ -63,7 +63,7 @@ TEST_F(LearnerTest, RejectsBadUnrollsWithTheFieldName) {
   EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.contributions"));
   bad = Unroll(7, 1);  // Ahead of the learner (it resumed from an older checkpoint): retryable.
   status = (*learner)->Push(bad);
-  EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(status.code(), absl::StatusCode::kAborted);
   EXPECT_THAT(status.message(), HasSubstr("ahead: unroll.policy_version"));
   EXPECT_EQ((*learner)->Status().unrolls_rejected(), 5);
   EXPECT_EQ((*learner)->Status().unrolls_received(), 0);
@@ -89,7 +89,7 @@ TEST_F(LearnerTest, CapsTheBatchFeatureMemory) {
   EXPECT_TRUE((*learner)->Push(Unroll(0, 1)).ok());
   v1::Unroll big = testing::RandomUnroll(*scenario_, 16, 32, 2);
   const absl::Status status = (*learner)->Push(big);
-  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(status.code(), absl::StatusCode::kResourceExhausted);
   EXPECT_THAT(status.message(), HasSubstr("unroll.length * unroll.num_envs = 512 steps"));
   EXPECT_EQ((*learner)->Status().unrolls_received(), 1);
   EXPECT_EQ((*learner)->Status().unrolls_rejected(), 1);
@@ -273,16 +273,130 @@ TEST_F(LearnerTest, CriticInputsAndTimeLimitOptionsTrain) {
   EXPECT_THAT(std::string(ParseTimeLimit("never").status().message()), HasSubstr("bootstrap or terminal"));
 }
 
+TEST_F(LearnerTest, ResentUnrollsAreDroppedAcrossARestart) {
+  config_.budget_steps = 2 * 256;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  auto tagged = [&](uint64_t incarnation, int64_t sequence, uint64_t seed) {
+    v1::Unroll u = Unroll(0, seed);
+    u.set_actor_id("actor-1");
+    u.set_incarnation(incarnation);
+    u.set_sequence(sequence);
+    return u;
+  };
+  ASSERT_TRUE(l->Push(tagged(5, 1, 1)).ok());
+  // The same unroll again (its ack was lost): recognised, not queued.
+  const absl::Status again = l->Push(tagged(5, 1, 1));
+  EXPECT_EQ(again.code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(again.message(), HasSubstr("duplicate: unroll 1 of actor-1"));
+  // A restarted actor (new incarnation) numbers from 1 again: accepted.
+  ASSERT_TRUE(l->Push(tagged(6, 1, 2)).ok());
+  v1::LearnerStatus status = l->Status();
+  EXPECT_EQ(status.unrolls_received(), 2);
+  EXPECT_EQ(status.unrolls_duplicate(), 1);
+  EXPECT_EQ(status.actor_incarnations(), 2);
+  EXPECT_EQ(status.queue_depth(), 2);
+  ASSERT_TRUE(l->Run().ok());  // Trains both, checkpoints at the end.
+
+  // A learner restarted from that checkpoint still knows what it accepted.
+  auto restarted = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(restarted.ok());
+  ASSERT_TRUE((*restarted)->Restore(run_dir_ + "/checkpoints").ok());
+  v1::Unroll resent = tagged(6, 1, 2);
+  resent.set_policy_version(2);
+  EXPECT_EQ((*restarted)->Push(resent).code(), absl::StatusCode::kAlreadyExists);
+  resent.set_sequence(2);
+  EXPECT_TRUE((*restarted)->Push(resent).ok());
+  EXPECT_EQ((*restarted)->Status().env_steps(), 2 * 256);
+}
+
+TEST_F(LearnerTest, PoisonUnrollsAreRefusedAndExtremeOnesTrain) {
+  config_.budget_steps = 256;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  // The two unrolls that ended the learner from a Python client: a log-prob
+  // no float probability has, and one a float holds but that is not the log
+  // of the recorded probability.
+  for (const float poison : {-1e38f, -90.0f}) {
+    v1::Unroll bad = Unroll(0, 1);
+    bad.set_behaviour_log_probs(0, poison);
+    const absl::Status status = l->Push(bad);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << poison;
+    EXPECT_THAT(status.message(), HasSubstr("unroll.behaviour_log_probs[0]")) << poison;
+    EXPECT_THAT(status.message(), HasSubstr("is not the log of action_probs[0]")) << poison;
+  }
+  v1::Unroll huge = Unroll(0, 1);
+  huge.set_rewards(3, 1e30f);
+  EXPECT_THAT(l->Push(huge).message(), HasSubstr("unroll.rewards[3]: 1e+30 is outside [-1e6, 1e6]"));
+  huge = Unroll(0, 1);
+  huge.set_intrinsic_rewards(0, -2e6f);
+  EXPECT_THAT(l->Push(huge).message(), HasSubstr("unroll.intrinsic_rewards[0]"));
+  // Consistent but extreme: the recorded action had probability 1e-12, the
+  // floor, so the learner's ratio is ~1e11 before its bound. Trains.
+  v1::Unroll extreme = Unroll(0, 2);
+  const int a_count = scenario_->num_actions();
+  for (int row = 0; row < extreme.actions_size(); ++row) {
+    const int taken = extreme.actions(row);
+    for (int j = 0; j < a_count; ++j) {
+      extreme.set_action_probs(row * a_count + j, j == taken ? 0.0f : 1.0f / (a_count - 1));
+    }
+    extreme.set_behaviour_log_probs(row, std::log(1e-12f));
+    extreme.set_rewards(row, row % 2 == 0 ? 1e5f : -1e5f);
+  }
+  ASSERT_TRUE(l->Push(extreme).ok());
+  ASSERT_TRUE(l->Run().ok());
+  const v1::LearnerStatus status = l->Status();
+  EXPECT_EQ(status.policy_version(), 1);
+  EXPECT_EQ(status.batches_dropped(), 0);
+  EXPECT_EQ(status.minibatches_skipped(), 0);
+  for (const v1::NamedTensor& t : l->CurrentPolicy()->tensors()) {
+    for (float w : t.data()) ASSERT_TRUE(std::isfinite(w)) << t.name();
+  }
+}
+
+TEST_F(LearnerTest, CheckpointsByTimeAndFallsBackPastADamagedOne) {
+  config_.budget_steps = 3 * 256;
+  config_.checkpoint_every = 0;
+  config_.checkpoint_seconds = 1e-6;  // After every iteration.
+  config_.max_policy_lag = 10;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  for (uint64_t seed = 1; seed <= 3; ++seed) ASSERT_TRUE(l->Push(Unroll(0, seed)).ok());
+  ASSERT_TRUE(l->Run().ok());
+  const std::string dir = run_dir_ + "/checkpoints";
+  for (const char* stem : {"/ckpt-00000001", "/ckpt-00000002", "/ckpt-00000003"}) {
+    EXPECT_TRUE(std::filesystem::exists(dir + stem + ".meta")) << stem;
+  }
+  // A .pt without its .meta (a crash between the two) is not a checkpoint.
+  std::filesystem::copy_file(dir + "/ckpt-00000003.pt", dir + "/ckpt-00000009.pt");
+  EXPECT_EQ(NewestCheckpoint(dir).value(), dir + "/ckpt-00000003.meta");
+  // A damaged newest checkpoint costs one interval, not the run.
+  std::filesystem::resize_file(dir + "/ckpt-00000003.pt", 100);
+  auto restarted = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(restarted.ok());
+  ASSERT_TRUE((*restarted)->Restore(dir).ok());
+  EXPECT_EQ((*restarted)->Status().policy_version(), 2);
+  EXPECT_EQ((*restarted)->Status().env_steps(), 2 * 256);
+}
+
 TEST_F(LearnerTest, StopWakesBlockedPushers) {
   config_.queue_capacity = 1;
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok());
   Learner* l = learner->get();
   ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());  // Fills the queue; nobody trains.
+  EXPECT_EQ(l->Status().pushers_waiting(), 0);
   std::thread pusher([l, this] { EXPECT_EQ(l->Push(Unroll(0, 2)).code(), absl::StatusCode::kUnavailable); });
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // Stop only once the pusher is blocked on the full queue, so that the test
+  // is of the wake-up and not of a Push that saw the stop first.
+  while (l->Status().pushers_waiting() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(l->Status().queue_depth(), 1);
   l->Stop();
   pusher.join();
+  EXPECT_EQ(l->Status().pushers_waiting(), 0);
 }
 
 }  // namespace

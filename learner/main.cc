@@ -73,7 +73,9 @@ ABSL_FLAG(double, huber_delta, kDefaults.ppo.huber_delta, "Huber value loss delt
 ABSL_FLAG(int, max_policy_lag, kDefaults.max_policy_lag, "drop unrolls older than this many policy versions");
 ABSL_FLAG(int, queue_capacity, kDefaults.queue_capacity,
           "unrolls waiting for training before PushUnrolls blocks the actors");
-ABSL_FLAG(int, checkpoint_every, kDefaults.checkpoint_every, "iterations between checkpoints");
+ABSL_FLAG(int, checkpoint_every, kDefaults.checkpoint_every, "iterations between checkpoints (0: not by iterations)");
+ABSL_FLAG(double, checkpoint_seconds, kDefaults.checkpoint_seconds,
+          "seconds between checkpoints (0: not by time); a killed learner loses at most this much training");
 ABSL_FLAG(uint64_t, seed, kDefaults.ppo.seed, "seed of network initialisation and minibatch shuffling");
 ABSL_FLAG(int, threads, kDefaults.ppo.threads, "LibTorch intra-op threads");
 ABSL_FLAG(bool, concurrent_critic, kDefaults.ppo.concurrent_critic,
@@ -156,6 +158,10 @@ int main(int argc, char** argv) {
   config.budget_steps = absl::GetFlag(FLAGS_steps);
   config.run_dir = absl::GetFlag(FLAGS_run_dir);
   config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
+  config.checkpoint_seconds = absl::GetFlag(FLAGS_checkpoint_seconds);
+  if (config.checkpoint_every < 0 || !(config.checkpoint_seconds >= 0)) {
+    return Fail("--checkpoint_every and --checkpoint_seconds must be >= 0");
+  }
   if (absl::GetFlag(FLAGS_max_batch_mb) < 1 || absl::GetFlag(FLAGS_max_batch_mb) > (int64_t{1} << 30)) {
     return Fail("--max_batch_mb must be in [1, 2^30]");
   }

@@ -1,10 +1,6 @@
 #include "learner/ppo_trainer.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -23,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/synchronization/mutex.h"
+#include "common/atomic_file.h"
 #include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "learner/lap.h"
@@ -30,6 +27,8 @@
 namespace imca::learner {
 
 namespace internal {
+
+constexpr double kMaxLogRatio = 10.0;
 
 // The PPO clipped surrogate as a loss to minimise:
 //   -mean(min(ratio * A, clamp(ratio, 1 - clip, 1 + clip) * A)),
@@ -43,14 +42,20 @@ namespace internal {
 //   r = exp(log_probs - proximal), w = exp(proximal - behaviour).
 // `proximal` and `behaviour` carry no gradient. With proximal == behaviour
 // (w = 1) it is the textbook surrogate, ClippedSurrogateLoss.
+// Both log-ratios are clamped to [-kMaxLogRatio, kMaxLogRatio] before the
+// exp, as IMPALA's V-trace truncates its importance weights: whatever
+// log-probability an unroll carries, the ratio stays finite (at most e^10 =
+// 22026). PPO's own ratios stay within a few tenths of 0, where the clamp
+// does nothing; a sample beyond it gives no gradient through the ratio.
 torch::Tensor DecoupledSurrogateLoss(const torch::Tensor& log_probs,
                                      const torch::Tensor& proximal_log_probs,
                                      const torch::Tensor& behaviour_log_probs,
                                      const torch::Tensor& advantages, double clip) {
-  const torch::Tensor ratio = torch::exp(log_probs - proximal_log_probs);
+  const torch::Tensor ratio = torch::exp(torch::clamp(log_probs - proximal_log_probs, -kMaxLogRatio, kMaxLogRatio));
   const torch::Tensor unclipped = ratio * advantages;
   const torch::Tensor clipped = torch::clamp(ratio, 1.0 - clip, 1.0 + clip) * advantages;
-  const torch::Tensor weight = torch::exp(proximal_log_probs - behaviour_log_probs);
+  const torch::Tensor weight =
+      torch::exp(torch::clamp(proximal_log_probs - behaviour_log_probs, -kMaxLogRatio, kMaxLogRatio));
   return -(weight * torch::min(unclipped, clipped)).mean();
 }
 
@@ -65,6 +70,7 @@ torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
 namespace {
 
 constexpr double kAdvantageEps = 1e-8;
+
 // Floor on the return normaliser's variance (std >= 0.01). Constant returns
 // (e.g. a sparse reward never seen yet) drive the variance to 0; dividing the
 // value targets by a vanishing std would blow up tiny differences.
@@ -248,9 +254,17 @@ struct StatsSums {
   int64_t kl_samples = 0;
   int64_t clipped = 0;
   int64_t samples = 0;
+  int64_t skipped = 0;
+  std::string skip_reason;  // The first skipped minibatch's.
+
+  void Skip(std::string reason) {
+    if (skipped++ == 0) skip_reason = std::move(reason);
+  }
 
   PpoStats Finish() const {
     PpoStats s;
+    s.minibatches_skipped = skipped;
+    s.skip_reason = skip_reason;
     const double u = std::max<int64_t>(updates, 1);
     s.policy_loss = policy_loss / u;
     s.value_loss = value_loss / u;
@@ -324,20 +338,6 @@ absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn:
                        t == nullptr ? "(missing)" : c10::str(t->sizes()), ", expected ",
                        c10::str(item.value().sizes())));
     }
-  }
-  return absl::OkStatus();
-}
-
-// Flushes a written file to disk so that the rename below publishes a
-// complete checkpoint even across a crash of the machine.
-absl::Status SyncFile(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY);
-  if (fd < 0) return absl::InternalError(absl::StrCat("open ", path, ": ", std::strerror(errno)));
-  const int rc = ::fsync(fd);
-  const int saved_errno = errno;
-  ::close(fd);
-  if (rc != 0) {
-    return absl::InternalError(absl::StrCat("fsync ", path, ": ", std::strerror(saved_errno)));
   }
   return absl::OkStatus();
 }
@@ -633,20 +633,30 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   const double entropy_value = entropy.item<double>();
   const double loss_value =
       policy_value + config_.value_coef * value_value - config_.entropy_coef * entropy_value;
+  // A minibatch whose loss or gradient is not finite takes no step; it is
+  // counted, and the iteration goes on with the next one.
   if (!std::isfinite(loss_value)) {
     model_.ZeroGrad();
-    return absl::InternalError(absl::StrCat("non-finite PPO loss ", loss_value, " (policy ", policy_value,
-                                            ", value ", value_value, ", entropy ", entropy_value,
-                                            "); no step taken"));
+    sums.Skip(absl::StrCat("non-finite PPO loss ", loss_value, " (policy ", policy_value, ", value ",
+                           value_value, ", entropy ", entropy_value, ")"));
+    return absl::OkStatus();
   }
   double grad_norm_sq = 0;  // Of all parameters together, whatever the grouping.
   for (const auto& group : model_.groups) {
-    const double norm = torch::nn::utils::clip_grad_norm_(group, config_.max_grad_norm);
-    if (!std::isfinite(norm)) {
-      model_.ZeroGrad();
-      return absl::InternalError(
-          absl::StrCat("non-finite gradient norm ", norm, "; no step taken"));
+    // Measured before clipping, so that no parameter is scaled by a
+    // non-finite factor.
+    double norm_sq = 0;
+    for (const torch::Tensor& p : group) {
+      if (p.grad().defined()) norm_sq += p.grad().to(torch::kFloat64).pow(2).sum().item<double>();
     }
+    if (!std::isfinite(norm_sq)) {
+      model_.ZeroGrad();
+      sums.Skip(absl::StrCat("non-finite gradient norm ", std::sqrt(norm_sq)));
+      return absl::OkStatus();
+    }
+  }
+  for (const auto& group : model_.groups) {
+    const double norm = torch::nn::utils::clip_grad_norm_(group, config_.max_grad_norm);
     grad_norm_sq += norm * norm;
   }
   const double grad_norm = std::sqrt(grad_norm_sq);
@@ -902,30 +912,18 @@ v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
 }
 
 absl::Status PpoTrainer::Save(const std::string& path) const {
-  const std::string tmp = path + ".tmp";
-  try {
-    torch::serialize::OutputArchive archive;
-    impl_->WriteTo(archive);
-    archive.save_to(tmp);
-  } catch (const c10::Error& e) {
-    std::remove(tmp.c_str());
-    return absl::InternalError(
-        absl::StrCat("saving checkpoint ", path, ": ", e.what_without_backtrace()));
-  } catch (const std::exception& e) {
-    std::remove(tmp.c_str());
-    return absl::InternalError(absl::StrCat("saving checkpoint ", path, ": ", e.what()));
-  }
-  if (absl::Status synced = SyncFile(tmp); !synced.ok()) {
-    std::remove(tmp.c_str());
-    return synced;
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int saved_errno = errno;
-    std::remove(tmp.c_str());
-    return absl::InternalError(
-        absl::StrCat("renaming ", tmp, " to ", path, ": ", std::strerror(saved_errno)));
-  }
-  return absl::OkStatus();
+  return WriteFileAtomically(path, [&](std::ostream& out) {
+    try {
+      torch::serialize::OutputArchive archive;
+      impl_->WriteTo(archive);
+      archive.save_to(out);
+    } catch (const c10::Error& e) {
+      return absl::InternalError(absl::StrCat("saving checkpoint ", path, ": ", e.what_without_backtrace()));
+    } catch (const std::exception& e) {
+      return absl::InternalError(absl::StrCat("saving checkpoint ", path, ": ", e.what()));
+    }
+    return absl::OkStatus();
+  });
 }
 
 absl::Status PpoTrainer::Load(const std::string& path) {

@@ -118,6 +118,10 @@ struct PpoStats {
   double seconds_forward = 0;
   double seconds_backward = 0;
   double seconds_optimizer = 0;
+  // Minibatches that took no step because their loss or gradient was not
+  // finite, and why the first of them failed.
+  int64_t minibatches_skipped = 0;
+  std::string skip_reason;
 };
 
 // Not thread-safe: the learner's training thread owns it.
@@ -144,9 +148,12 @@ class PpoTrainer {
   // shuffled minibatches: clipped surrogate (PpoConfig::objective), value
   // loss on normalised targets, entropy bonus, grad-norm clipping. With one
   // value head, returns_int is ignored; returns_voi is read with three.
-  // Errors: INVALID_ARGUMENT if the batch's vectors do not match `size`;
-  // INTERNAL if LibTorch throws or a loss becomes non-finite (weights are
-  // left as before that minibatch).
+  // A minibatch whose loss or gradient is not finite takes no step and is
+  // counted in PpoStats::minibatches_skipped; the log-ratios are bounded
+  // (to +-10 before the exp), so no recorded log-probability makes them
+  // infinite. Errors, each with the trainer unchanged: INVALID_ARGUMENT if
+  // the batch's vectors do not match `size` or an element is out of range or
+  // not finite; INTERNAL if LibTorch throws.
   absl::StatusOr<PpoStats> Train(const PpoBatch& batch);
 
   // The actor as named tensors, see learner_service.proto: architecture

@@ -7,6 +7,8 @@
 #include <ostream>
 
 #include "absl/strings/str_cat.h"
+#include "common/atomic_file.h"
+#include "common/status_macros.h"
 
 namespace imca::reward {
 
@@ -42,21 +44,11 @@ absl::Status CountTable::Read(std::istream& in) {
 }
 
 absl::Status SaveTables(const std::string& path, const std::string& tag, const std::vector<const CountTable*>& tables) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) return absl::InternalError(absl::StrCat("cannot write snapshot '", tmp, "'"));
+  return WriteFileAtomically(path, [&](std::ostream& out) {
     out << tag << "\n";
-    for (const CountTable* table : tables) {
-      if (absl::Status status = table->Write(out); !status.ok()) return status;
-    }
-    out.flush();
-    if (!out) return absl::InternalError(absl::StrCat("writing snapshot '", tmp, "' failed"));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
-  }
-  return absl::OkStatus();
+    for (const CountTable* table : tables) IMCA_RETURN_IF_ERROR(table->Write(out));
+    return absl::OkStatus();
+  });
 }
 
 absl::Status LoadTables(const std::string& path, const std::string& tag, const std::vector<CountTable*>& tables) {

@@ -50,7 +50,10 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
   batch.action_probs = unroll.action_probs().data();
   batch.episode_ids = unroll.episode_ids().data();
   if (unroll.terminated_size() == count) batch.terminated = unroll.terminated().data();
-  batch.actor = std::hash<std::string>()(unroll.actor_id());
+  // Per-episode state is keyed by the producing process: a restarted actor
+  // (a new incarnation) numbers its episodes afresh and must not continue
+  // the dead one's.
+  batch.actor = std::hash<std::string>()(unroll.actor_id()) ^ (unroll.incarnation() * 0x9e3779b97f4a7c15ULL);
   ScoreOutput out;
   out.global_rewards = response->mutable_global_rewards()->mutable_data();
   out.contributions = response->mutable_contributions()->mutable_data();

@@ -3,24 +3,23 @@
 #include <cstdio>
 
 #include "absl/strings/str_cat.h"
+#include "common/atomic_file.h"
 
 namespace imca::reward {
 
 absl::Status SaveArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::OutputArchive&)>& fill) {
-  try {
-    torch::serialize::OutputArchive archive;
-    archive.write("tag", c10::IValue(tag));
-    fill(archive);
-    const std::string tmp = path + ".tmp";
-    archive.save_to(tmp);
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-      return absl::InternalError(absl::StrCat("cannot rename snapshot to '", path, "'"));
+  return WriteFileAtomically(path, [&](std::ostream& out) {
+    try {
+      torch::serialize::OutputArchive archive;
+      archive.write("tag", c10::IValue(tag));
+      fill(archive);
+      archive.save_to(out);
+    } catch (const std::exception& e) {
+      return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
     }
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
-  }
-  return absl::OkStatus();
+    return absl::OkStatus();
+  });
 }
 
 absl::Status LoadArchive(const std::string& path, const std::string& tag,
