@@ -332,13 +332,12 @@ void Actor::WriteStatus(const char* state, bool force) {
   const auto now = std::chrono::steady_clock::now();
   if (!force && now - status_written_ < config_.status_period) return;
   status_written_ = now;
-  const double time = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   const absl::Status written = WriteFileAtomically(
       config_.status_file,
       absl::StrFormat("{\"actor_id\": \"%s\", \"incarnation\": \"%016x\", \"unrolls_pushed\": %d, "
                       "\"unrolls_resent\": %d, \"transitions_scored\": %d, \"state\": \"%s\", \"time\": %.3f}\n",
                       absl::CEscape(config_.actor_id), incarnation_, unrolls_pushed_, unrolls_resent_,
-                      transitions_scored_, state, time));
+                      transitions_scored_, state, UnixSeconds()));
   if (!written.ok()) {
     std::fprintf(stderr, "%s: status: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
   }

@@ -1,6 +1,7 @@
 #ifndef IMCA_COMMON_ATOMIC_FILE_H_
 #define IMCA_COMMON_ATOMIC_FILE_H_
 
+#include <chrono>
 #include <functional>
 #include <ostream>
 #include <string>
@@ -26,6 +27,12 @@ absl::Status WriteFileAtomically(const std::string& path, std::string_view conte
 
 // fsync of a file or folder by path. Errors: INTERNAL naming it.
 absl::Status SyncPath(const std::string& path);
+
+// Seconds since the Unix epoch: the "time" of the status files the
+// binaries write for a supervisor (--status_file).
+inline double UnixSeconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
 
 }  // namespace imca
 

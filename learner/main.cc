@@ -8,6 +8,8 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "common/atomic_file.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
@@ -84,6 +86,8 @@ ABSL_FLAG(int64_t, max_batch_mb, 8192,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(double, linger_seconds, 2,
           "after the budget, keep serving this long so that actors in backoff learn it is done");
+ABSL_FLAG(std::string, status_file, "",
+          "if set, write a one-line JSON progress record here every second (for a supervisor)");
 ABSL_FLAG(int, signal_exit_code, 0,
           "exit code when SIGINT/SIGTERM stops training before the budget (Kubernetes Jobs: 143, "
           "so that an evicted learner is replaced rather than counted as finished)");
@@ -199,10 +203,32 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "learner: serving on port %d\n", port);
 
   // Signals only set a flag; this watcher turns it into Learner::Stop().
+  // It also writes the status file: from this thread, so that a wedged
+  // training thread shows as a growing seconds_stalled, not a silent file.
   std::atomic<bool> finished{false};
+  const std::string status_file = absl::GetFlag(FLAGS_status_file);
+  auto write_status = [&] {
+    if (status_file.empty()) return;
+    const v1::LearnerStatus s = (*learner)->Status();
+    const absl::Status written = WriteFileAtomically(
+        status_file,
+        absl::StrFormat("{\"policy_version\": %d, \"env_steps\": %d, \"unrolls_received\": %d, "
+                        "\"unrolls_duplicate\": %d, \"actor_incarnations\": %d, \"queue_depth\": %d, "
+                        "\"pushers_waiting\": %d, \"seconds_stalled\": %.3f, \"batches_dropped\": %d, "
+                        "\"done\": %s, \"time\": %.3f}\n",
+                        s.policy_version(), s.env_steps(), s.unrolls_received(), s.unrolls_duplicate(),
+                        s.actor_incarnations(), s.queue_depth(), s.pushers_waiting(), s.seconds_stalled(),
+                        s.batches_dropped(), s.done() ? "true" : "false", UnixSeconds()));
+    if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
+  };
   std::thread watcher([&] {
+    auto last_status = std::chrono::steady_clock::time_point{};
     while (!finished.load() && !ShutdownRequested()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (std::chrono::steady_clock::now() - last_status > std::chrono::seconds(1)) {
+        last_status = std::chrono::steady_clock::now();
+        write_status();
+      }
     }
     (*learner)->Stop();
   });
@@ -218,6 +244,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(3)));
+  write_status();
   if (!run.ok()) return Fail(absl::StrCat("training failed: ", run.message()));
   const v1::LearnerStatus status = (*learner)->Status();
   std::fprintf(stderr, "learner: stopped at %lld env steps, policy version %lld\n",

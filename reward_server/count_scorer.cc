@@ -31,7 +31,7 @@ uint32_t CountNovelty::JointCount(const int32_t* state, const int32_t* actions) 
   int order[env::kMaxAgents];
   codec_.SlotOrder(state, config_.permutation == Permutation::kCanonical, order);
   absl::MutexLock lock(&mu_);
-  return global_.Get(codec_.GlobalKey(state, actions, order));
+  return store_.Get(kGlobal, codec_.GlobalKey(state, actions, order));
 }
 
 absl::Status CountNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
@@ -40,7 +40,8 @@ absl::Status CountNovelty::Compute(const TransitionBatch& batch, bool dry_run, c
     ComputeOne(batch.states + i * k_, batch.actions + i * n_, batch.action_probs + i * n_ * num_actions_, dry_run,
                out, i);
   }
-  return absl::OkStatus();
+  // Journaled before the response goes out.
+  return store_.Commit(dry_run ? 0 : batch.size);
 }
 
 void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
@@ -48,17 +49,17 @@ void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, cons
   if (out.local != nullptr) {
     const bool shared_table = config_.permutation != Permutation::kOff;
     for (int a = 0; a < n_; ++a) {
-      out.local[i * n_ + a] = CountBonus(local_.Get(codec_.LocalKey(state, a, actions[a], shared_table)));
+      out.local[i * n_ + a] = CountBonus(store_.Get(kLocal, codec_.LocalKey(state, a, actions[a], shared_table)));
     }
     if (!dry_run) {
-      for (int a = 0; a < n_; ++a) local_.Increment(codec_.LocalKey(state, a, actions[a], shared_table));
+      for (int a = 0; a < n_; ++a) store_.Increment(kLocal, codec_.LocalKey(state, a, actions[a], shared_table));
     }
     return;
   }
   int order[env::kMaxAgents];
   codec_.SlotOrder(state, config_.permutation == Permutation::kCanonical, order);
   const uint64_t key = codec_.GlobalKey(state, actions, order);
-  const float novelty = CountBonus(global_.Get(key));
+  const float novelty = CountBonus(store_.Get(kGlobal, key));
   out.joint[i] = novelty;
   if (out.contributions != nullptr) {
     // Counterfactuals: agent a's action replaced by every u', all probed
@@ -71,7 +72,7 @@ void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, cons
         counterfactual[a] = u;
         // The taken action's pair is (S, U) itself: its novelty was read above.
         const float n_u =
-            u == actions[a] ? novelty : CountBonus(global_.Get(codec_.GlobalKey(state, counterfactual, order)));
+            u == actions[a] ? novelty : CountBonus(store_.Get(kGlobal, codec_.GlobalKey(state, counterfactual, order)));
         baseline += probs[a * num_actions_ + u] * n_u;
       }
       counterfactual[a] = actions[a];
@@ -81,16 +82,16 @@ void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, cons
   if (dry_run) return;
   if (config_.permutation == Permutation::kRandom) {
     for (int slot = n_ - 1; slot > 0; --slot) std::swap(order[slot], order[rng_.Uniform(slot + 1)]);
-    global_.Increment(codec_.GlobalKey(state, actions, order));
+    store_.Increment(kGlobal, codec_.GlobalKey(state, actions, order));
   } else {
-    global_.Increment(key);
+    store_.Increment(kGlobal, key);
   }
 }
 
 void CountNovelty::FillStats(v1::RewardStats* stats) const {
   absl::MutexLock lock(&mu_);
-  stats->set_distinct_keys(global_.size());
-  stats->set_distinct_local_keys(local_.size());
+  stats->set_distinct_keys(store_.table(kGlobal).size());
+  stats->set_distinct_local_keys(store_.table(kLocal).size());
 }
 
 std::string CountNovelty::ConfigTag() const {
@@ -102,22 +103,27 @@ std::string CountNovelty::ConfigTag() const {
 absl::Status CountNovelty::Save(const std::string& path) const {
   absl::MutexLock save_lock(&save_mu_);
   // Copy under the lock (fast), write without it, so Score is not blocked by I/O.
-  CountTable global, local;
+  CountStore::Snapshot snapshot;
   {
     absl::MutexLock lock(&mu_);
-    global = global_;
-    local = local_;
+    IMCA_ASSIGN_OR_RETURN(snapshot, store_.TakeSnapshot());
   }
-  return SaveTables(path, ConfigTag(), {&global, &local});
+  return CountStore::WriteSnapshot(path, ConfigTag(), snapshot);
 }
 
 absl::Status CountNovelty::Load(const std::string& path) {
-  CountTable global, local;
-  IMCA_RETURN_IF_ERROR(LoadTables(path, ConfigTag(), {&global, &local}));
   absl::MutexLock lock(&mu_);
-  global_ = std::move(global);
-  local_ = std::move(local);
-  return absl::OkStatus();
+  return store_.Load(path, ConfigTag());
+}
+
+absl::Status CountNovelty::Restore(const std::string& path, bool sync) {
+  absl::MutexLock lock(&mu_);
+  return store_.Restore(path, ConfigTag(), sync);
+}
+
+std::optional<int64_t> CountNovelty::DurableTransitions() const {
+  absl::MutexLock lock(&mu_);
+  return store_.transitions();
 }
 
 }  // namespace imca::reward

@@ -37,6 +37,8 @@ class CountNovelty final : public Novelty {
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
+  absl::Status Restore(const std::string& path, bool sync) override;
+  std::optional<int64_t> DurableTransitions() const override;
 
   // Current count of the joint pair (state, actions) under this scorer's key
   // mapping (canonical order if configured, agent order otherwise).
@@ -54,11 +56,13 @@ class CountNovelty final : public Novelty {
   const ScorerConfig config_;
   const JointKeyCodec codec_;
 
-  // Serialises whole snapshot writes (tmp file + rename); taken before mu_.
+  static constexpr int kGlobal = 0;  // The joint table.
+  static constexpr int kLocal = 1;   // The per-agent tables (one key space).
+  // Serialises whole snapshot writes; taken before mu_.
   mutable absl::Mutex save_mu_;
   mutable absl::Mutex mu_;
-  CountTable global_ ABSL_GUARDED_BY(mu_);
-  CountTable local_ ABSL_GUARDED_BY(mu_);
+  // Mutable: taking a snapshot (Save, const) starts the next journal.
+  mutable CountStore store_ ABSL_GUARDED_BY(mu_){2};
   Rng rng_ ABSL_GUARDED_BY(mu_);
 };
 

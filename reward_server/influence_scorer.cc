@@ -66,7 +66,7 @@ float InfluenceNovelty::Influence(const int32_t* state, const int32_t* actions, 
                                   const absl::flat_hash_map<uint64_t, uint32_t>& pending) const {
   auto count = [&](uint64_t key) {
     auto it = pending.find(key);
-    return static_cast<double>(transitions_.Get(key)) + (it == pending.end() ? 0.0 : it->second);
+    return static_cast<double>(store_.Get(kTransitions, key)) + (it == pending.end() ? 0.0 : it->second);
   };
   const int32_t* cells = state + 1;
   const int32_t* reached = next + 1;
@@ -110,24 +110,25 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, bool dry_ru
           sum += c;
         }
         const double curiosity =
-            influence_.eta / std::sqrt(static_cast<double>(cells_.Get(CellKey(i, next[1 + i]))) + 1.0);
+            influence_.eta / std::sqrt(static_cast<double>(store_.Get(kCells, CellKey(i, next[1 + i]))) + 1.0);
         out.local[row * n + i] = static_cast<float>(curiosity + (influence_.edti ? 0.0 : influence_.beta_t * sum));
       }
     }
     if (dry_run) continue;
-    for (const auto& [key, count] : pending) transitions_.Add(key, count);
+    for (const auto& [key, count] : pending) store_.Add(kTransitions, key, count);
     for (int64_t e = 0; e < E; ++e) {
       const int32_t* next = batch.next_states + (t * E + e) * K;
-      for (int i = 0; i < n; ++i) cells_.Increment(CellKey(i, next[1 + i]));
+      for (int i = 0; i < n; ++i) store_.Increment(kCells, CellKey(i, next[1 + i]));
     }
   }
-  return absl::OkStatus();
+  // Journaled before the response goes out.
+  return store_.Commit(dry_run ? 0 : batch.size);
 }
 
 void InfluenceNovelty::FillStats(v1::RewardStats* stats) const {
   absl::ReaderMutexLock lock(&mu_);
-  stats->set_distinct_keys(transitions_.size());
-  stats->set_distinct_local_keys(cells_.size());
+  stats->set_distinct_keys(store_.table(kTransitions).size());
+  stats->set_distinct_local_keys(store_.table(kCells).size());
 }
 
 std::string InfluenceNovelty::ConfigTag() const {
@@ -137,22 +138,27 @@ std::string InfluenceNovelty::ConfigTag() const {
 
 absl::Status InfluenceNovelty::Save(const std::string& path) const {
   absl::MutexLock save_lock(&save_mu_);
-  CountTable transitions, cells;
+  CountStore::Snapshot snapshot;
   {
-    absl::ReaderMutexLock lock(&mu_);
-    transitions = transitions_;
-    cells = cells_;
+    absl::MutexLock lock(&mu_);
+    IMCA_ASSIGN_OR_RETURN(snapshot, store_.TakeSnapshot());
   }
-  return SaveTables(path, ConfigTag(), {&transitions, &cells});
+  return CountStore::WriteSnapshot(path, ConfigTag(), snapshot);
 }
 
 absl::Status InfluenceNovelty::Load(const std::string& path) {
-  CountTable transitions, cells;
-  IMCA_RETURN_IF_ERROR(LoadTables(path, ConfigTag(), {&transitions, &cells}));
   absl::MutexLock lock(&mu_);
-  transitions_ = std::move(transitions);
-  cells_ = std::move(cells);
-  return absl::OkStatus();
+  return store_.Load(path, ConfigTag());
+}
+
+absl::Status InfluenceNovelty::Restore(const std::string& path, bool sync) {
+  absl::MutexLock lock(&mu_);
+  return store_.Restore(path, ConfigTag(), sync);
+}
+
+std::optional<int64_t> InfluenceNovelty::DurableTransitions() const {
+  absl::MutexLock lock(&mu_);
+  return store_.transitions();
 }
 
 }  // namespace imca::reward

@@ -47,6 +47,8 @@ class InfluenceNovelty final : public Novelty {
   void FillStats(v1::RewardStats* stats) const override;
   absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
+  absl::Status Restore(const std::string& path, bool sync) override;
+  std::optional<int64_t> DurableTransitions() const override;
 
  private:
   float Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
@@ -59,10 +61,12 @@ class InfluenceNovelty final : public Novelty {
   const int step_index_;  // Of the step count in a state: 0 marks a reset state.
   const InfluenceConfig influence_;
 
+  static constexpr int kTransitions = 0;  // The four tables of every pair, by key tag.
+  static constexpr int kCells = 1;        // N_i(s_i) of the curiosity.
   mutable absl::Mutex save_mu_;  // Taken before mu_.
   mutable absl::Mutex mu_;
-  CountTable transitions_ ABSL_GUARDED_BY(mu_);  // The four tables of every pair, by key tag.
-  CountTable cells_ ABSL_GUARDED_BY(mu_);        // N_i(s_i) of the curiosity.
+  // Mutable: taking a snapshot (Save, const) starts the next journal.
+  mutable CountStore store_ ABSL_GUARDED_BY(mu_){2};
 };
 
 }  // namespace imca::reward

@@ -8,6 +8,8 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "common/atomic_file.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
@@ -31,8 +33,17 @@ ABSL_FLAG(std::string, permutation, "off", "permutation mode: off|random|canonic
 ABSL_FLAG(double, beta, 1.0, "coefficient of the global intrinsic reward");
 ABSL_FLAG(double, temperature, 1.0, "softmax temperature tau of the credit shares");
 ABSL_FLAG(uint64_t, seed, 1, "seed of the random permutation mode");
-ABSL_FLAG(std::string, snapshot, "", "snapshot file: loaded at start if present, written periodically and at shutdown");
-ABSL_FLAG(int, snapshot_every, 300, "seconds between periodic snapshots (0: only at shutdown)");
+ABSL_FLAG(std::string, snapshot, "",
+          "snapshot file: restored at start (count kinds: with the journal of every increment since, "
+          "<snapshot>.journal-*), written periodically and at shutdown");
+ABSL_FLAG(int, snapshot_every, 30,
+          "seconds between periodic snapshots (0: only at shutdown); bounds what a kill loses of rnd and sf "
+          "models, and how much journal a count kind replays");
+ABSL_FLAG(bool, journal_fsync, false,
+          "count kinds: fdatasync the journal before each Score answer (survives a machine crash, not only a "
+          "killed process; docs/reliability.md)");
+ABSL_FLAG(std::string, status_file, "",
+          "if set, write a one-line JSON progress record here every second (for a supervisor)");
 
 namespace {
 
@@ -79,11 +90,17 @@ int main(int argc, char** argv) {
   std::unique_ptr<reward::Scorer> scorer = *std::move(made);
 
   const std::string snapshot = absl::GetFlag(FLAGS_snapshot);
-  if (!snapshot.empty() && std::ifstream(snapshot).good()) {
-    if (absl::Status loaded = scorer->Load(snapshot); !loaded.ok()) {
-      return Fail(absl::StrCat("--snapshot: ", loaded.message()));
+  if (absl::GetFlag(FLAGS_snapshot_every) < 0) return Fail("--snapshot_every must be >= 0");
+  if (!snapshot.empty()) {
+    const bool resumed = std::ifstream(snapshot).good();
+    if (absl::Status restored = scorer->Restore(snapshot, absl::GetFlag(FLAGS_journal_fsync)); !restored.ok()) {
+      return Fail(absl::StrCat("--snapshot: ", restored.message()));
     }
-    std::fprintf(stderr, "reward_server: resumed from %s\n", snapshot.c_str());
+    const std::optional<int64_t> transitions = scorer->DurableTransitions();
+    if (resumed || transitions.value_or(0) > 0) {
+      std::fprintf(stderr, "reward_server: restored from %s (%lld transitions counted)\n", snapshot.c_str(),
+                   static_cast<long long>(transitions.value_or(-1)));
+    }
   }
 
   reward::RewardServiceImpl service(scenario->get(), scorer.get(), kind, config, snapshot);
@@ -99,9 +116,22 @@ int main(int argc, char** argv) {
                absl::GetFlag(FLAGS_credit).c_str(), port);
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));
+  const std::string status_file = absl::GetFlag(FLAGS_status_file);
   auto last_snapshot = std::chrono::steady_clock::now();
+  auto last_status = std::chrono::steady_clock::time_point{};
   while (!ShutdownRequested()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (!status_file.empty() && std::chrono::steady_clock::now() - last_status > std::chrono::seconds(1)) {
+      last_status = std::chrono::steady_clock::now();
+      const v1::RewardStats stats = service.Stats();
+      const absl::Status written = WriteFileAtomically(
+          status_file,
+          absl::StrFormat("{\"transitions_scored\": %d, \"requests_served\": %d, \"requests_rejected\": %d, "
+                          "\"distinct_keys\": %d, \"time\": %.3f}\n",
+                          stats.transitions_scored(), stats.requests_served(), stats.requests_rejected(),
+                          stats.distinct_keys(), UnixSeconds()));
+      if (!written.ok()) std::fprintf(stderr, "reward_server: status: %s\n", std::string(written.message()).c_str());
+    }
     if (!snapshot.empty() && period.count() > 0 &&
         std::chrono::steady_clock::now() - last_snapshot > period) {
       if (absl::Status saved = scorer->Save(snapshot); !saved.ok()) {

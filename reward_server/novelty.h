@@ -2,7 +2,9 @@
 #define IMCA_REWARD_SERVER_NOVELTY_H_
 
 #include <cstdint>
+#include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "absl/status/status.h"
@@ -56,6 +58,18 @@ class Novelty {
   // Replaces all learned state with the file's. Errors: NOT_FOUND, DATA_LOSS,
   // FAILED_PRECONDITION if the file was written under another configuration.
   virtual absl::Status Load(const std::string& path) = 0;
+  // What a (re)starting server calls with its --snapshot path: the state as
+  // it was when the last process stopped, however it stopped. Count kinds
+  // load the snapshot if any, replay the journal of every increment since
+  // it, and journal from now on (fdatasync'ed per Score with `sync`); so no
+  // answered increment is lost (CountStore). Learned kinds load the
+  // snapshot if there is one: their state is as old as it. Errors as Load's.
+  virtual absl::Status Restore(const std::string& path, bool sync) {
+    return std::ifstream(path).good() ? Load(path) : absl::OkStatus();
+  }
+  // Transitions counted into state that survives a restart (count kinds), or
+  // nullopt if the kind does not keep that count.
+  virtual std::optional<int64_t> DurableTransitions() const { return std::nullopt; }
 };
 
 // The one credit rule (SPEC section 5, docs/credit.md) over any Novelty:
@@ -80,6 +94,8 @@ class CreditScorer : public Scorer {
   void FillStats(v1::RewardStats* stats) const override { novelty_->FillStats(stats); }
   absl::Status Save(const std::string& path) const override { return novelty_->Save(path); }
   absl::Status Load(const std::string& path) override { return novelty_->Load(path); }
+  absl::Status Restore(const std::string& path, bool sync) override { return novelty_->Restore(path, sync); }
+  std::optional<int64_t> DurableTransitions() const override { return novelty_->DurableTransitions(); }
 
   Novelty& novelty() { return *novelty_; }
 

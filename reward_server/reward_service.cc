@@ -73,6 +73,13 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
 
 grpc::Status RewardServiceImpl::GetStats(grpc::ServerContext*, const v1::GetStatsRequest*,
                                          v1::RewardStats* response) {
+  *response = Stats();
+  return grpc::Status::OK;
+}
+
+v1::RewardStats RewardServiceImpl::Stats() const {
+  v1::RewardStats stats;
+  v1::RewardStats* response = &stats;
   response->set_reward_kind(reward_kind_);
   response->set_credit(std::string(CreditName(config_.credit)));
   response->set_permutation(std::string(PermutationName(config_.permutation)));
@@ -80,11 +87,12 @@ grpc::Status RewardServiceImpl::GetStats(grpc::ServerContext*, const v1::GetStat
   response->set_temperature(config_.temperature);
   response->set_scenario(std::string(scenario_->name()));
   response->set_num_agents(scenario_->num_agents());
-  response->set_transitions_scored(transitions_scored_.load());
+  // Count kinds keep the count with their tables, across restarts.
+  response->set_transitions_scored(scorer_->DurableTransitions().value_or(transitions_scored_.load()));
   response->set_requests_served(requests_served_.load());
   response->set_requests_rejected(requests_rejected_.load());
   scorer_->FillStats(response);
-  return grpc::Status::OK;
+  return stats;
 }
 
 grpc::Status RewardServiceImpl::Snapshot(grpc::ServerContext*, const v1::SnapshotRequest*,

@@ -29,6 +29,9 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   grpc::Status Snapshot(grpc::ServerContext* context, const v1::SnapshotRequest* request,
                         v1::SnapshotResponse* response) override;
 
+  // What GetStats answers.
+  v1::RewardStats Stats() const;
+
   // After this, Score answers UNAVAILABLE (used while draining at shutdown).
   void StopAccepting() { accepting_.store(false); }
 

@@ -1,5 +1,8 @@
 // RewardService over a real loopback gRPC channel: every bad field gives
 // INVALID_ARGUMENT naming it, and a rejected request changes no count.
+#include <unistd.h>
+
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
@@ -244,6 +247,64 @@ TEST(InfluenceServiceTest, EdtiReturnsInfluencesEitiDoesNot) {
     EXPECT_GT(stats.distinct_local_keys(), 0) << "the curiosity's cell counts";
     (*server)->Shutdown();
   }
+}
+
+// A server that dies without its final snapshot (the scorer is dropped, as
+// by kill -9: the journal's writes are all it leaves) comes back with every
+// answered Score counted, for each kind with count tables.
+TEST(RecoveryTest, EveryAnsweredScoreSurvivesAServerThatDies) {
+  const std::string dir = ::testing::TempDir() + "/recovery_test_" + std::to_string(getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  for (const std::string kind : {"count", "eiti"}) {
+    env::ScenarioConfig scenario_config;
+    scenario_config.name = kind == "count" ? "coop_nav" : "pass";
+    auto scenario = env::MakeScenario(scenario_config, env::DefaultMapDir());
+    ASSERT_TRUE(scenario.ok()) << scenario.status();
+    ScorerConfig config;
+    config.credit = kind == "count" ? Credit::kImca : Credit::kIndependent;
+    const std::string snapshot = dir + "/" + kind + ".bin";
+    // One incarnation of the server: restore, serve `requests` Score calls
+    // (a Snapshot RPC after the second), return the stats it answered with.
+    auto serve = [&](int requests, uint64_t seed) {
+      auto scorer = MakeScorer(kind, **scenario, config);
+      EXPECT_TRUE(scorer.ok()) << scorer.status();
+      EXPECT_TRUE((*scorer)->Restore(snapshot, /*sync=*/false).ok());
+      RewardServiceImpl service(scenario->get(), scorer->get(), kind, config, snapshot);
+      int port = 0;
+      auto server = StartServer("127.0.0.1:0", {&service}, &port);
+      EXPECT_TRUE(server.ok()) << server.status();
+      auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+      for (int r = 0; r < requests; ++r) {
+        v1::ScoreRequest request;
+        *request.mutable_unroll() = testing::RandomUnroll(**scenario, 8, 4, seed + r);
+        v1::ScoreResponse response;
+        grpc::ClientContext context;
+        context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+        EXPECT_TRUE(stub->Score(&context, request, &response).ok()) << kind;
+        if (r == 1) {
+          grpc::ClientContext snapshot_context;
+          v1::SnapshotResponse saved;
+          EXPECT_TRUE(stub->Snapshot(&snapshot_context, v1::SnapshotRequest(), &saved).ok());
+        }
+      }
+      grpc::ClientContext stats_context;
+      v1::RewardStats stats;
+      EXPECT_TRUE(stub->GetStats(&stats_context, v1::GetStatsRequest(), &stats).ok());
+      (*server)->Shutdown();
+      return stats;  // No final Save: the scorer goes as a killed process's would.
+    };
+    const v1::RewardStats first = serve(5, 100);
+    EXPECT_EQ(first.transitions_scored(), 5 * 32) << kind;
+    const v1::RewardStats second = serve(0, 0);
+    EXPECT_EQ(second.transitions_scored(), first.transitions_scored()) << kind;
+    EXPECT_EQ(second.distinct_keys(), first.distinct_keys()) << kind;
+    EXPECT_EQ(second.distinct_local_keys(), first.distinct_local_keys()) << kind;
+    const v1::RewardStats third = serve(3, 200);  // Goes on counting from there.
+    EXPECT_EQ(third.transitions_scored(), 8 * 32) << kind;
+    EXPECT_EQ(serve(0, 0).distinct_keys(), third.distinct_keys()) << kind;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

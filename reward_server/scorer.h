@@ -2,6 +2,7 @@
 #define IMCA_REWARD_SERVER_SCORER_H_
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "absl/status/status.h"
@@ -55,6 +56,9 @@ class Scorer {
   // Replaces all learned state with the file's. Errors: NOT_FOUND, DATA_LOSS,
   // FAILED_PRECONDITION if the file was written under another configuration.
   virtual absl::Status Load(const std::string& path) = 0;
+  // See Novelty::Restore and Novelty::DurableTransitions.
+  virtual absl::Status Restore(const std::string& path, bool sync) = 0;
+  virtual std::optional<int64_t> DurableTransitions() const = 0;
 };
 
 }  // namespace imca::reward

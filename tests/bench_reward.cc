@@ -2,7 +2,10 @@
 // 64 steps x 32 envs per call) for count, RND and SF with 2 agents (coop_nav)
 // and 4 agents (predator_prey), and the share of time imca's counterfactuals
 // add (1 - time(shared) / time(imca), same kind and scenario). Medians.
+#include <unistd.h>
+
 #include <algorithm>
+#include <filesystem>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -20,11 +23,21 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Median transitions/s of Score calls with `credit`.
-double Throughput(const std::string& kind, const env::Scenario& scenario, reward::Credit credit, int rounds) {
+enum class Journal { kOff, kWrite, kSync };
+
+// Median transitions/s of Score calls with `credit`; with a journal, the
+// scorer is restored from (and journals to) a fresh snapshot path.
+double Throughput(const std::string& kind, const env::Scenario& scenario, reward::Credit credit, int rounds,
+                  Journal journal = Journal::kOff) {
   reward::ScorerConfig config;
   config.credit = credit;
   std::unique_ptr<reward::Scorer> scorer = *reward::MakeScorer(kind, scenario, config);
+  const std::string dir = "/tmp/bench_reward_" + std::to_string(getpid());
+  if (journal != Journal::kOff) {
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    if (!scorer->Restore(dir + "/snapshot.bin", journal == Journal::kSync).ok()) return 0;
+  }
   reward::RewardServiceImpl service(&scenario, scorer.get(), kind, config, "");
   int port = 0;
   auto server = StartServer("127.0.0.1:0", {&service}, &port);
@@ -47,6 +60,8 @@ double Throughput(const std::string& kind, const env::Scenario& scenario, reward
     if (r > 0) rates.push_back(calls * 64.0 * 32.0 / std::chrono::duration<double>(Clock::now() - start).count());
   }
   (*server)->Shutdown();
+  scorer.reset();
+  std::filesystem::remove_all(dir);
   std::sort(rates.begin(), rates.end());
   return rates[rates.size() / 2];
 }
@@ -71,6 +86,22 @@ int main(int argc, char** argv) {
                   100.0 * (1.0 - imca / shared));
       std::fflush(stdout);
     }
+  }
+  // The count journal's cost (docs/reliability.md): imca credit, no journal,
+  // the journal written before each answer, and fdatasync'ed as well.
+  std::printf("\n%-6s %-14s %14s %14s %14s %9s %9s\n", "kind", "scenario", "off_trans/s", "journal_trans/s",
+              "fsync_trans/s", "journal", "fsync");
+  for (const char* name : {"coop_nav", "predator_prey"}) {
+    env::ScenarioConfig config;
+    config.name = name;
+    auto scenario = env::MakeScenario(config, env::DefaultMapDir());
+    if (!scenario.ok()) return 1;
+    const double off = Throughput("count", **scenario, reward::Credit::kImca, rounds, Journal::kOff);
+    const double write = Throughput("count", **scenario, reward::Credit::kImca, rounds, Journal::kWrite);
+    const double sync = Throughput("count", **scenario, reward::Credit::kImca, rounds, Journal::kSync);
+    std::printf("%-6s %-14s %14.0f %14.0f %14.0f %8.1f%% %8.1f%%\n", "count", name, off, write, sync,
+                100.0 * (1.0 - write / off), 100.0 * (1.0 - sync / off));
+    std::fflush(stdout);
   }
   return 0;
 }

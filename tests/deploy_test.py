@@ -251,7 +251,7 @@ class DeployTestBase:
                 self.assertEqual(d.stop("reward_server-0"), 0, d.log("reward_server-0"))
                 self.assertGreater(os.path.getsize(tmp + snapshot), 0)
                 d.start("reward_server-1", "reward_server")
-                self.assertIn("resumed from", d.log("reward_server-1"))
+                self.assertIn("restored from", d.log("reward_server-1"))
                 self.assertEqual(d.stop("reward_server-1"), 0, d.log("reward_server-1"))
             finally:
                 d.procs.stop(timeout=5)
