@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <thread>
 
 #include <unistd.h>
 
@@ -217,9 +218,20 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
   v1::PushUnrollsRequest request;
   request.mutable_unroll()->Swap(unroll);
   v1::PushUnrollsResponse ack;
+  {
+    absl::MutexLock lock(&watch_mu_);
+    ack_wait_since_ = std::chrono::steady_clock::now();
+    waiting_context_ = stream_context_.get();
+  }
   const bool sent = stream_->Write(request);
   unroll->Swap(request.mutable_unroll());
-  if (!sent || !stream_->Read(&ack)) {
+  const bool acked = sent && stream_->Read(&ack);
+  {
+    absl::MutexLock lock(&watch_mu_);
+    ack_wait_since_.reset();
+    waiting_context_ = nullptr;
+  }
+  if (!acked) {
     const grpc::Status status = stream_->Finish();
     stream_.reset();
     stream_context_.reset();
@@ -249,7 +261,38 @@ bool Actor::LearnerDone() {
   return learner_->GetStatus(&context, v1::GetStatusRequest(), &status).ok() && status.done();
 }
 
+void Actor::WatchAcks() {
+  absl::MutexLock lock(&watch_mu_);
+  while (watching_) {
+    watch_mu_.AwaitWithTimeout(absl::Condition(+[](bool* watching) { return !*watching; }, &watching_),
+                               absl::Milliseconds(200));
+    if (ack_wait_since_.has_value() && waiting_context_ != nullptr &&
+        std::chrono::steady_clock::now() - *ack_wait_since_ > config_.ack_timeout) {
+      std::fprintf(stderr, "%s: no ack from the learner for %lld ms; reconnecting\n", config_.actor_id.c_str(),
+                   static_cast<long long>(config_.ack_timeout.count()));
+      waiting_context_->TryCancel();
+      waiting_context_ = nullptr;  // Once per wait.
+    }
+  }
+}
+
 absl::Status Actor::Run() {
+  {
+    absl::MutexLock lock(&watch_mu_);
+    watching_ = true;
+  }
+  std::thread watchdog([this] { WatchAcks(); });
+  struct StopWatchdog {
+    Actor* self;
+    std::thread* thread;
+    ~StopWatchdog() {
+      {
+        absl::MutexLock lock(&self->watch_mu_);
+        self->watching_ = false;
+      }
+      thread->join();
+    }
+  } stop_watchdog{this, &watchdog};
   std::fprintf(stderr, "%s: incarnation %016llx\n", config_.actor_id.c_str(),
                static_cast<unsigned long long>(incarnation_));
   WriteStatus("waiting_policy", /*force=*/true);

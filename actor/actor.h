@@ -10,7 +10,9 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/synchronization/mutex.h"
 #include "common/env.h"
 #include "common/featurizer.h"
 #include "common/policy_mlp.h"
@@ -33,6 +35,10 @@ struct ActorConfig {
   uint64_t seed = 1;
   std::chrono::milliseconds rpc_timeout{10000};
   int unrolls_per_stream = 256;  // PushUnrolls streams are reopened after this many.
+  // Longest wait for one unroll's ack (the learner delays acks while its
+  // queue is full, by up to an iteration): past it the stream is cancelled,
+  // logged, and the unroll resent on a new one.
+  std::chrono::milliseconds ack_timeout{60000};
   // If set, the newest finished training episode of env 0 with its credit
   // (one CSV row per step and agent: episode, t, agent, cell, next_cell,
   // action, share, contribution, agent_reward, global_reward) is written here,
@@ -78,6 +84,8 @@ class Actor {
   // Pushes sent again after a lost stream.
   int64_t unrolls_resent() const { return unrolls_resent_; }
   uint64_t incarnation() const { return incarnation_; }
+  // Transitions whose Score was answered.
+  int64_t transitions_scored() const { return transitions_scored_; }
 
  private:
   // Fetches a newer policy if there is one. With `wait`, retries until one
@@ -124,6 +132,14 @@ class Actor {
   env::VecEnv envs_;
   env::VecEnv eval_envs_;
   Rng rng_;
+
+  // The ack watchdog: while Push waits for an ack, `ack_wait_since_` is set
+  // and a thread started by Run() cancels the stream past ack_timeout.
+  void WatchAcks();
+  absl::Mutex watch_mu_;
+  bool watching_ ABSL_GUARDED_BY(watch_mu_) = false;
+  std::optional<std::chrono::steady_clock::time_point> ack_wait_since_ ABSL_GUARDED_BY(watch_mu_);
+  grpc::ClientContext* waiting_context_ ABSL_GUARDED_BY(watch_mu_) = nullptr;
 
   std::unique_ptr<grpc::ClientContext> stream_context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::PushUnrollsRequest, v1::PushUnrollsResponse>> stream_;

@@ -24,6 +24,8 @@ ABSL_FLAG(int, eval_envs, imca::actor::ActorConfig{}.eval_envs,
 ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and --actor_id)");
 ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
 ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
+ABSL_FLAG(int, ack_timeout_ms, 60000,
+          "longest wait for the learner's ack of one unroll; past it the stream is cancelled and the unroll resent");
 ABSL_FLAG(int, signal_exit_code, 0,
           "exit code when SIGINT/SIGTERM stops the actor before the learner is done (Kubernetes "
           "Jobs: 143, so that an evicted actor is replaced rather than counted as finished)");
@@ -66,6 +68,10 @@ int main(int argc, char** argv) {
                   std::hash<std::string>{}(id);
   }
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
+  config.ack_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_ack_timeout_ms));
+  if (config.rpc_timeout.count() < 100 || config.ack_timeout.count() < 100) {
+    return fail("--rpc_timeout_ms and --ack_timeout_ms must be >= 100");
+  }
   config.trace_file = absl::GetFlag(FLAGS_trace_file);
   config.status_file = absl::GetFlag(FLAGS_status_file);
   const int signal_exit_code = absl::GetFlag(FLAGS_signal_exit_code);

@@ -31,8 +31,8 @@ void RequestShutdown();
 absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(
     const std::string& listen, const std::vector<grpc::Service*>& services, int* bound_port);
 
-// A client channel with keepalive settings suitable for long-lived streams and
-// message limits that fit the largest unrolls.
+// A client channel with keepalive (kKeepaliveTimeMs) and message limits that
+// fit the largest unrolls.
 std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target);
 
 // Deadline `timeout` from now, for ClientContext::set_deadline.
@@ -58,6 +58,12 @@ class Backoff {
 
 // Largest message the servers and clients accept.
 inline constexpr int kMaxMessageBytes = 64 << 20;
+
+// Keepalive of every channel and server (both sides set together): a ping
+// after this much silence, and the connection dropped if it is not answered
+// within the timeout. So a dead or frozen peer shows within ~30 s.
+inline constexpr int kKeepaliveTimeMs = 20000;
+inline constexpr int kKeepaliveTimeoutMs = 10000;
 
 }  // namespace imca
 

@@ -8,6 +8,7 @@
 #include <limits>
 #include <sstream>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/atomic_file.h"
@@ -45,6 +46,26 @@ double Mean(const std::deque<T>& values) {
 }
 
 int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); }
+
+// Drops the rows of a CSV file whose first column (the iteration) is above
+// `iteration`: iterations a restarted learner rolled back to its checkpoint
+// and trains again. The header and other rows stay; written atomically.
+absl::Status DropRowsAfter(const fs::path& path, int64_t iteration) {
+  std::ifstream in(path);
+  if (!in) return absl::OkStatus();
+  std::string kept, line;
+  bool dropped = false, first = true;
+  while (std::getline(in, line)) {
+    int64_t row_iteration = 0;
+    if (!first && absl::SimpleAtoi(line.substr(0, line.find(',')), &row_iteration) && row_iteration > iteration) {
+      dropped = true;
+      continue;
+    }
+    first = false;
+    absl::StrAppend(&kept, line, "\n");
+  }
+  return dropped ? WriteFileAtomically(path.string(), kept) : absl::OkStatus();
+}
 
 }  // namespace
 
@@ -117,7 +138,7 @@ int64_t Learner::IterationBytes(int64_t steps) const {
   return steps * bytes_per_step;
 }
 
-absl::Status Learner::Push(v1::Unroll unroll) {
+absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
   absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true, config_.edti});
   if (valid.ok()) {
     // A batch gathers unrolls until it holds batch_steps, so the largest is
@@ -135,20 +156,32 @@ absl::Status Learner::Push(v1::Unroll unroll) {
     ++unrolls_rejected_;
     return valid;
   }
+  int64_t admitted_version;
   {
     absl::MutexLock lock(&mu_);
     IMCA_RETURN_IF_ERROR(Admit(unroll));
+    admitted_version = version_;
   }
   // Featurised here, on the pushing (gRPC) thread, so that the training
   // thread only computes values and GAE and trains.
   QueuedUnroll queued = Featurise(std::move(unroll));
   absl::MutexLock lock(&mu_);
   ++pushers_waiting_;
-  mu_.Await(absl::Condition(
+  const absl::Condition room(
       +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
         return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
       },
-      this));
+      this);
+  // No wait without a timeout: every second, whether the pusher is still there.
+  while (!mu_.AwaitWithTimeout(room, absl::Seconds(1))) {
+    if (cancelled != nullptr && cancelled()) {
+      --pushers_waiting_;
+      // Not queued: its steps no longer count towards this version's batch,
+      // and a resend of it is not a duplicate.
+      if (config_.synchronous && version_ == admitted_version) version_steps_ -= Steps(queued.unroll);
+      return absl::CancelledError("the pusher went away while the queue was full");
+    }
+  }
   --pushers_waiting_;
   if (stopping_) return StoppedStatus();
   const v1::Unroll& u = queued.unroll;
@@ -517,6 +550,26 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoB
     minibatches_skipped_ += stats.minibatches_skipped;
     last_intrinsic_ = credit.intrinsic;
   }
+  if (!config_.trained_log.empty()) {
+    // One row per trained unroll: what a resend or a restart could make
+    // train twice, for a reader to check that it did not.
+    if (!trained_log_.is_open()) {
+      const bool fresh = !fs::exists(config_.trained_log);
+      if (!fresh) IMCA_RETURN_IF_ERROR(DropRowsAfter(config_.trained_log, iteration_ - 1));
+      trained_log_.open(config_.trained_log, std::ios::app);
+      if (fresh) trained_log_ << "iteration,actor_id,incarnation,sequence,policy_version\n";
+    }
+    for (const v1::Unroll& u : unrolls) {
+      trained_log_ << iteration_ << "," << u.actor_id() << "," << absl::StrFormat("%016x", u.incarnation()) << ","
+                   << u.sequence() << "," << u.policy_version() << "\n";
+    }
+    trained_log_.flush();
+    if (!trained_log_) {
+      trained_log_.close();
+      trained_log_.clear();
+      std::fprintf(stderr, "learner: cannot write %s\n", config_.trained_log.c_str());
+    }
+  }
   Clock::time_point lap = Clock::now();
   Publish();
   phases_.publish = Lap(lap);
@@ -579,6 +632,7 @@ absl::Status Learner::WriteMetricsRow(const PpoStats& stats, double lag, const C
       fs::rename(path, fs::path(config_.run_dir) / "metrics.old.csv", error);
       existing.clear();
     }
+    if (!existing.empty()) IMCA_RETURN_IF_ERROR(DropRowsAfter(path, iteration_ - 1));
     metrics_.open(path, std::ios::app);
     if (existing.empty()) metrics_ << header << "\n";
   }

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <deque>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <set>
@@ -72,6 +73,10 @@ struct LearnerConfig {
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
   int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
   std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
+  // If set, a CSV row per trained unroll (iteration, actor_id, incarnation,
+  // sequence, policy_version); rows of iterations a restart rolled back are
+  // dropped.
+  std::string trained_log;
   // A checkpoint is written every checkpoint_every iterations and whenever
   // checkpoint_seconds have passed since the last one (0 turns either off),
   // and at the end: a killed learner loses at most that much training.
@@ -112,8 +117,10 @@ class Learner {
   //     that actor incarnation's last accepted unroll, a resend
   //     (REJECTION_DUPLICATE);
   //   OUT_OF_RANGE once the budget is done; UNAVAILABLE once the learner is
-  //     stopping for another reason (both end the stream).
-  absl::Status Push(v1::Unroll unroll);
+  //     stopping for another reason (both end the stream);
+  //   CANCELLED if `cancelled` (polled every second while the queue is full)
+  //     returns true: the pusher went away, nothing was queued.
+  absl::Status Push(v1::Unroll unroll, const std::function<bool()>& cancelled = nullptr);
 
   // The newest published policy (never null after Create).
   std::shared_ptr<const v1::Policy> CurrentPolicy() const;
@@ -201,6 +208,7 @@ class Learner {
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::ofstream metrics_;                // Training thread only.
   bool metrics_ok_ = true;               // Training thread only: the last row was written.
+  std::ofstream trained_log_;            // Training thread only.
   // When the last checkpoint was written (training thread only).
   std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   int64_t iteration_ = 0;                // Training thread only.

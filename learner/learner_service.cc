@@ -8,7 +8,8 @@ namespace {
 
 constexpr int kMaxPolicyWaitMs = 60000;
 
-// Learner::Push's refusal codes, one per reason (learner.h).
+}  // namespace
+
 v1::Rejection RejectionOf(const absl::Status& status) {
   switch (status.code()) {
     case absl::StatusCode::kOk: return v1::REJECTION_NONE;
@@ -20,16 +21,17 @@ v1::Rejection RejectionOf(const absl::Status& status) {
   }
 }
 
-}  // namespace
-
 grpc::Status LearnerServiceImpl::PushUnrolls(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) {
   v1::PushUnrollsRequest request;
   while (stream->Read(&request)) {
-    const absl::Status status = learner_->Push(std::move(*request.mutable_unroll()));
-    // Ends the stream: the learner stops, or its budget is done.
-    if (absl::IsUnavailable(status) || absl::IsOutOfRange(status)) return ToGrpcStatus(status);
+    const absl::Status status =
+        learner_->Push(std::move(*request.mutable_unroll()), [context] { return context->IsCancelled(); });
+    // Ends the stream: the learner stops, or its budget is done, or the actor left.
+    if (absl::IsUnavailable(status) || absl::IsOutOfRange(status) || absl::IsCancelled(status)) {
+      return ToGrpcStatus(status);
+    }
     v1::PushUnrollsResponse ack;
     ack.set_accepted(status.ok());
     ack.set_rejection(RejectionOf(status));

@@ -6,6 +6,10 @@
 
 namespace imca::learner {
 
+// Learner::Push's refusal codes, one per reason (learner.h), as the
+// PushUnrollsResponse.rejection the actor acts on.
+v1::Rejection RejectionOf(const absl::Status& status);
+
 // The gRPC face of a Learner (sync API: each PushUnrolls stream holds one
 // server thread, which is what gives back-pressure). Thread-safe.
 class LearnerServiceImpl final : public v1::LearnerService::Service {

@@ -86,6 +86,8 @@ ABSL_FLAG(int64_t, max_batch_mb, 8192,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(double, linger_seconds, 2,
           "after the budget, keep serving this long so that actors in backoff learn it is done");
+ABSL_FLAG(std::string, trained_log, "",
+          "if set, append a CSV row per trained unroll (iteration, actor_id, incarnation, sequence, policy_version)");
 ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor)");
 ABSL_FLAG(int, signal_exit_code, 0,
@@ -161,6 +163,7 @@ int main(int argc, char** argv) {
   config.queue_capacity = absl::GetFlag(FLAGS_queue_capacity);
   config.budget_steps = absl::GetFlag(FLAGS_steps);
   config.run_dir = absl::GetFlag(FLAGS_run_dir);
+  config.trained_log = absl::GetFlag(FLAGS_trained_log);
   config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
   config.checkpoint_seconds = absl::GetFlag(FLAGS_checkpoint_seconds);
   if (config.checkpoint_every < 0 || !(config.checkpoint_seconds >= 0)) {

@@ -117,20 +117,24 @@ int main(int argc, char** argv) {
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));
   const std::string status_file = absl::GetFlag(FLAGS_status_file);
+  auto write_status = [&] {
+    if (status_file.empty()) return;
+    const v1::RewardStats stats = service.Stats();
+    const absl::Status written = WriteFileAtomically(
+        status_file,
+        absl::StrFormat("{\"transitions_scored\": %d, \"requests_served\": %d, \"requests_rejected\": %d, "
+                        "\"distinct_keys\": %d, \"distinct_local_keys\": %d, \"time\": %.3f}\n",
+                        stats.transitions_scored(), stats.requests_served(), stats.requests_rejected(),
+                        stats.distinct_keys(), stats.distinct_local_keys(), UnixSeconds()));
+    if (!written.ok()) std::fprintf(stderr, "reward_server: status: %s\n", std::string(written.message()).c_str());
+  };
   auto last_snapshot = std::chrono::steady_clock::now();
   auto last_status = std::chrono::steady_clock::time_point{};
   while (!ShutdownRequested()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    if (!status_file.empty() && std::chrono::steady_clock::now() - last_status > std::chrono::seconds(1)) {
+    if (std::chrono::steady_clock::now() - last_status > std::chrono::seconds(1)) {
       last_status = std::chrono::steady_clock::now();
-      const v1::RewardStats stats = service.Stats();
-      const absl::Status written = WriteFileAtomically(
-          status_file,
-          absl::StrFormat("{\"transitions_scored\": %d, \"requests_served\": %d, \"requests_rejected\": %d, "
-                          "\"distinct_keys\": %d, \"time\": %.3f}\n",
-                          stats.transitions_scored(), stats.requests_served(), stats.requests_rejected(),
-                          stats.distinct_keys(), UnixSeconds()));
-      if (!written.ok()) std::fprintf(stderr, "reward_server: status: %s\n", std::string(written.message()).c_str());
+      write_status();
     }
     if (!snapshot.empty() && period.count() > 0 &&
         std::chrono::steady_clock::now() - last_snapshot > period) {
@@ -147,6 +151,7 @@ int main(int argc, char** argv) {
       return Fail(absl::StrCat("final snapshot failed: ", saved.message()));
     }
   }
+  write_status();
   std::fprintf(stderr, "reward_server: stopped\n");
   return 0;
 }

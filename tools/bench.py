@@ -4,7 +4,12 @@
 speed  component ceilings (bench_speed) and end-to-end training throughput,
        with the ratio end-to-end / learner-only.
 env    joint env steps/s of every scenario on one core (vectorised).
-reward Score throughput for count, rnd, sf with 2 and 4 agents; counterfactual share.
+reward Score throughput for count, rnd, sf with 2 and 4 agents; counterfactual share;
+       the count journal's cost.
+soak   16 actors for 10 minutes on loopback: RSS of every process every 10 s and
+       its growth after warm-up (the count tables' share apart).
+drill  kill -9 of the reward server, an actor and the learner 20 s apart in a
+       4M-step run, against unbroken runs of the same seed (docs/reliability.md).
 learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds
        (--scenario, --reward; further training flags after --); final success
        rate, env steps to 80% and 90%, and imca's credit diagnostics.
@@ -19,9 +24,11 @@ import datetime
 import json
 import os
 import shutil
+import signal
 import statistics
 import subprocess
 import sys
+import time
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
@@ -207,6 +214,148 @@ def learn(args, base):
     print(f"\nrun folders: {base}")
 
 
+def rss_bytes(pid):
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def run_processes(run_dir):
+    """{name: pid} of the live processes of a run (by the run folder in their argv)."""
+    found = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                argv = f.read().decode(errors="replace").split("\0")
+        except OSError:
+            continue
+        binary = os.path.basename(argv[0])
+        if binary not in ("actor", "learner", "reward_server") or not any(run_dir in a for a in argv):
+            continue
+        name = binary
+        for a in argv:
+            if a.startswith("--actor_id="):
+                name = a.split("=", 1)[1]
+        found[name] = int(entry)
+    return found
+
+
+def soak(args, base):
+    """16 actors (by default) for --minutes on loopback; RSS of every process
+    every --every seconds; growth after --warmup minutes, the reward server's
+    split into its count tables' (bytes per new distinct key, measured over
+    the run) and the rest."""
+    run_dir = os.path.join(base, "run")
+    launcher = subprocess.Popen(LAUNCH + ["--out", run_dir, "--quiet", "--steps", str(10**12), "--actors",
+                                          str(args.actors), "--envs-per-actor", str(args.envs_per_actor),
+                                          "--unroll-length", "16", "--batch-steps",
+                                          str(args.actors * args.envs_per_actor * 16)] + args.extra,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    samples = []  # (seconds, {name: rss}, distinct keys, env steps)
+    start = time.time()
+    try:
+        while time.time() - start < args.minutes * 60:
+            time.sleep(args.every)
+            if launcher.poll() is not None:
+                sys.exit(f"imca bench: the run ended: {launcher.stderr.read().strip()}")
+            rss = {name: rss_bytes(pid) for name, pid in run_processes(run_dir).items()}
+            status = launch.read_json(os.path.join(run_dir, "logs", "reward_server.status.json")) or {}
+            learner = launch.read_json(os.path.join(run_dir, "logs", "learner.status.json")) or {}
+            samples.append((time.time() - start, rss, status.get("distinct_keys", 0) + status.get("distinct_local_keys", 0),
+                            learner.get("env_steps", 0)))
+    finally:
+        launcher.send_signal(signal.SIGINT)
+        launcher.wait(timeout=300)
+    with open(os.path.join(base, "rss.csv"), "w") as f:
+        names = sorted(samples[-1][1])
+        f.write("seconds,distinct_keys,env_steps," + ",".join(names) + "\n")
+        for t, rss, keys, steps in samples:
+            f.write(f"{t:.0f},{keys},{steps}," + ",".join(str(rss.get(n) or "") for n in names) + "\n")
+    warm = next(i for i, (t, *_rest) in enumerate(samples) if t >= args.warmup * 60)
+    t0, rss0, keys0, steps0 = samples[warm]
+    t1, rss1, keys1, steps1 = samples[-1]
+    minutes = (t1 - t0) / 60
+    print(f"soak: {args.actors} actors x {args.envs_per_actor} envs, {t1 / 60:.1f} min, {steps1:,} env steps "
+          f"({(steps1 - steps0) / (t1 - t0):,.0f}/s after warm-up); growth from minute {t0 / 60:.1f} to {t1 / 60:.1f}")
+    print(f"\n| process | RSS at warm-up (MB) | RSS at end (MB) | growth (MB) | growth (MB/min) |")
+    print("|---|---|---|---|---|")
+    for name in sorted(rss1, key=lambda n: (not n.startswith("reward"), not n.startswith("learner"), n)):
+        if rss0.get(name) is None or rss1.get(name) is None:
+            continue
+        growth = (rss1[name] - rss0[name]) / 1e6
+        print(f"| {name} | {rss0[name] / 1e6:.1f} | {rss1[name] / 1e6:.1f} | {growth:+.1f} | {growth / minutes:+.2f} |")
+    # The count tables' legitimate growth: bytes per distinct key from the
+    # whole run (first to last sample), applied to the keys added after warm-up.
+    first_t, first_rss, first_keys, _ = samples[0]
+    if "reward_server" in rss1 and keys1 > first_keys:
+        per_key = (rss1["reward_server"] - first_rss["reward_server"]) / (keys1 - first_keys)
+        tables = per_key * (keys1 - keys0) / 1e6
+        growth = (rss1["reward_server"] - rss0["reward_server"]) / 1e6
+        print(f"\nreward server: {keys1 - keys0:,} new distinct keys after warm-up ({keys1:,} in all), "
+              f"{per_key:.0f} bytes per key over the run: tables {tables:+.1f} MB of its {growth:+.1f} MB, "
+              f"other {growth - tables:+.1f} MB")
+    print(f"\nsamples: {os.path.join(base, 'rss.csv')}")
+
+
+def drill(args, base):
+    """The acceptance drill by hand: one run of --steps with kill -9 of the
+    reward server, then actor-1, then the learner, --gap seconds apart
+    (from --first s in), against --unbroken runs of the same seed."""
+    flags = ["--steps", str(args.steps), "--seed", str(args.seed)] + args.extra
+    results = []
+    for k in range(args.unbroken):
+        summary, _ = train(os.path.join(base, f"unbroken-{k + 1}"), flags)
+        results.append(("unbroken", summary, []))
+        print(f"unbroken {k + 1}: final success {summary['final_success_rate']:.1%}, "
+              f"{summary['env_steps']:,} env steps in {summary['wall_seconds']:.0f} s", flush=True)
+    run_dir = os.path.join(base, "killed")
+    if os.path.exists(run_dir):
+        shutil.rmtree(run_dir)
+    launcher = subprocess.Popen(LAUNCH + ["--out", run_dir, "--quiet"] + flags, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE, text=True)
+    kills = []
+    start = time.time()
+    for k, victim in enumerate(["reward_server", "actor-1", "learner"]):
+        while time.time() - start < args.first + k * args.gap:
+            time.sleep(0.1)
+        pid = run_processes(run_dir).get(victim)
+        if pid is None:
+            sys.exit(f"imca bench: no {victim} to kill (the run ended?)")
+        steps = (launch.read_json(os.path.join(run_dir, "logs", "learner.status.json")) or {}).get("env_steps", 0)
+        os.kill(pid, signal.SIGKILL)
+        kills.append((victim, time.time() - start, steps))
+        print(f"killed {victim} at {time.time() - start:.0f} s ({steps:,} env steps)", flush=True)
+    _, err = launcher.communicate()
+    if launcher.returncode != 0:
+        sys.exit(f"imca bench: the killed run failed: {err.strip()}")
+    summary = launch.read_json(os.path.join(run_dir, "summary.json"))
+    reward = launch.read_json(os.path.join(run_dir, "logs", "reward_server.status.json"))
+    learner = launch.read_json(os.path.join(run_dir, "logs", "learner.status.json"))
+    answered = sum((launch.read_json(os.path.join(run_dir, "logs", f"actor-{i}.status.json")) or {})
+                   .get("transitions_scored", 0) for i in range(2))
+    unbroken = [r[1]["final_success_rate"] for r in results]
+    print(f"\n| run | final success | env steps | wall s | restarts |")
+    print("|---|---|---|---|---|")
+    for k, (_, s_, _) in enumerate(results):
+        print(f"| unbroken {k + 1} | {s_['final_success_rate']:.1%} | {s_['env_steps']:,} | {s_['wall_seconds']:.0f} | 0 |")
+    print(f"| killed | {summary['final_success_rate']:.1%} | {summary['env_steps']:,} | {summary['wall_seconds']:.0f} | "
+          f"{', '.join(f'{n} {c}' for n, c in summary['restarts'].items() if c)} |")
+    if unbroken:
+        print(f"\nunbroken spread {min(unbroken):.1%}-{max(unbroken):.1%}; killed run "
+              f"{'inside' if min(unbroken) <= summary['final_success_rate'] <= max(unbroken) else 'outside'} it")
+    print(f"learner after its restart: duplicates dropped {learner['unrolls_duplicate']}, "
+          f"actor incarnations {learner['actor_incarnations']}; reward server transitions_scored "
+          f"{reward['transitions_scored']:,} (the surviving actors' answered Scores alone: {answered:,})")
+    print(f"run folders: {base}")
+
+
 def main(argv):
     p = argparse.ArgumentParser(prog="imca bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -219,6 +368,20 @@ def main(argv):
     e.add_argument("--rounds", type=int, default=7)
     rw = sub.add_parser("reward")
     rw.add_argument("--rounds", type=int, default=5)
+    sk = sub.add_parser("soak")
+    sk.add_argument("--actors", type=int, default=16)
+    sk.add_argument("--envs-per-actor", type=int, default=8)
+    sk.add_argument("--minutes", type=float, default=10)
+    sk.add_argument("--warmup", type=float, default=2, help="minutes before growth is measured")
+    sk.add_argument("--every", type=float, default=10, help="seconds between RSS samples")
+    sk.add_argument("extra", nargs="*", help="after --: more ./imca train flags")
+    dr = sub.add_parser("drill")
+    dr.add_argument("--steps", type=int, default=4_000_000)
+    dr.add_argument("--seed", type=int, default=1)
+    dr.add_argument("--unbroken", type=int, default=3, help="runs of the same seed without kills")
+    dr.add_argument("--first", type=float, default=20, help="seconds into the run of the first kill")
+    dr.add_argument("--gap", type=float, default=20, help="seconds between kills")
+    dr.add_argument("extra", nargs="*", help="after --: more ./imca train flags")
     l = sub.add_parser("learn")
     l.add_argument("--credits", default="none,shared,independent,imca")
     l.add_argument("--seeds", default="1,2,3")
@@ -229,14 +392,15 @@ def main(argv):
     l.add_argument("--out", default="", help="run folder (reruns skip its finished runs)")
     l.add_argument("extra", nargs="*", help="after --: more ./imca train flags, e.g. -- --beta 0.1")
     args = p.parse_args(argv)
-    if args.what != "learn":
+    if args.what not in ("learn", "soak", "drill"):
         args.extra = []
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     base = getattr(args, "out", "") or os.path.join(ROOT, "runs", f"bench-{args.what}-"
                         + (f"{args.scenario}-{args.reward}-" if args.what == "learn" else "") + stamp)
     base = os.path.abspath(base)
     os.makedirs(base, exist_ok=True)
-    {"speed": speed, "env": env_bench, "reward": reward_bench, "learn": learn}[args.what](args, base)
+    {"speed": speed, "env": env_bench, "reward": reward_bench, "learn": learn, "soak": soak,
+     "drill": drill}[args.what](args, base)
 
 
 if __name__ == "__main__":

@@ -204,7 +204,8 @@ def finished(run_dir, cell):
 
 
 # config.json keys that name where and how a run was launched, not what it trained.
-UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "map"}
+UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "map", "max_restarts", "stall_seconds",
+                       "checkpoint_seconds", "snapshot_every"}
 
 
 def settings_conflict(run_dir, cell):

@@ -144,6 +144,14 @@ def parse_args(argv):
     p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
     p.add_argument("--resume", default="", metavar="RUN_DIR",
                    help="continue a stopped run in RUN_DIR with its saved config; --steps is the total budget")
+    p.add_argument("--max-restarts", type=int, default=5,
+                   help="restarts of each process before the run gives up (0: none; docs/reliability.md)")
+    p.add_argument("--stall-seconds", type=float, default=60.0,
+                   help="a process with no progress for this long is restarted")
+    p.add_argument("--checkpoint-seconds", type=float, default=30.0,
+                   help="learner checkpoint interval: what a learner restart loses at most")
+    p.add_argument("--snapshot-every", type=int, default=30,
+                   help="reward server snapshot interval in s (count kinds also journal every increment)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     args = p.parse_args(argv)
     if args.resume:
@@ -183,6 +191,14 @@ def parse_args(argv):
             p.error(f"argument --{flag.replace('_', '-')}: must be >= 0")
     if not -1 <= args.door_timer <= 30:
         p.error("argument --door-timer: must be in [0, 30] (or -1: the scenario default)")
+    if args.max_restarts < 0:
+        p.error("argument --max-restarts: must be >= 0")
+    if args.stall_seconds < 10:
+        # An actor waiting for a policy refreshes its status once per long
+        # poll (up to 5 s); a shorter limit would restart healthy waiters.
+        p.error("argument --stall-seconds: must be >= 10")
+    if args.checkpoint_seconds < 0 or args.snapshot_every < 0:
+        p.error("argument --checkpoint-seconds/--snapshot-every: must be >= 0")
     if args.temperature <= 0:
         p.error("argument --temperature: must be > 0")
     if args.map and not os.path.isfile(args.map):
@@ -215,27 +231,93 @@ def sync_unrolls(args):
     return args.batch_steps // (args.actors * args.envs_per_actor * args.unroll_length) if args.sync else 0
 
 
-class Services:
-    """The child processes of one run, stopped in dependency order."""
+def _die_with_parent():
+    """In the child before exec: SIGTERM when the launcher dies, even by kill -9
+    (so that no child outlives it), and a new session, so that the terminal's
+    Ctrl-C reaches only the launcher, which then stops the children in order."""
+    os.setsid()
+    try:
+        import ctypes
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
 
-    def __init__(self, run_dir):
+
+def read_json(path):
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
+class Services:
+    """The child processes of one run, supervised and stopped in dependency order.
+
+    A child that dies (any exit but a finished one) is started again with the
+    same argv plus `restart_args`, after a backoff of 1 s doubling to 30 s;
+    past `max_restarts` restarts of one process the run ends with one line
+    naming it and its last log line. A child whose status file (written every
+    second by each binary) goes quiet for `stall_seconds`, or whose own
+    status says it is stalled, is killed and restarted the same way. Each
+    incarnation logs to logs/<name>.log, logs/<name>.1.log, ...; every restart
+    is a row of logs/restarts.csv.
+    """
+
+    def __init__(self, run_dir, max_restarts=5, stall_seconds=60.0):
         self.run_dir = run_dir
         self.logs = os.path.join(run_dir, "logs")
         os.makedirs(self.logs, exist_ok=True)
-        self.procs = []  # (name, Popen), in start order.
+        self.max_restarts = max_restarts
+        self.stall_seconds = stall_seconds
+        self.procs = []  # [name, Popen], in start order.
+        self.argv = {}
+        self.restart_args = {}
+        self.restarts = {}
+        self.started = {}
+        self.pending = {}  # name -> time at which to start it again.
+        self.log_names = {}
+        self.finished_codes = {}
 
-    def start(self, name, argv):
-        log = open(os.path.join(self.logs, name + ".log"), "ab")
-        # A new session: the terminal's Ctrl-C reaches only this launcher,
-        # which then stops the children in order.
-        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+    def status_file(self, name):
+        return os.path.join(self.logs, name + ".status.json")
+
+    def log_path(self, name):
+        return os.path.join(self.logs, self.log_names.get(name, name + ".log"))
+
+    def start(self, name, argv, restart_args=None, finished_codes=(0,)):
+        self.argv[name] = list(argv)
+        self.restart_args[name] = restart_args or (lambda: [])
+        self.restarts.setdefault(name, 0)
+        self.finished_codes[name] = finished_codes
+        return self._spawn(name, list(argv) + [f"--status_file={self.status_file(name)}"])
+
+    def _spawn(self, name, argv):
+        k = self.restarts[name]
+        self.log_names[name] = f"{name}.log" if k == 0 else f"{name}.{k}.log"
+        try:
+            os.remove(self.status_file(name))
+        except OSError:
+            pass
+        log = open(self.log_path(name), "ab")
+        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_parent,
                                 env=dict(os.environ, OMP_WAIT_POLICY="passive"))
-        self.procs.append((name, proc))
+        log.close()
+        for entry in self.procs:
+            if entry[0] == name:
+                entry[1] = proc
+                break
+        else:
+            self.procs.append([name, proc])
+        self.started[name] = time.time()
         return proc
+
+    def proc(self, name):
+        return next(p for n, p in self.procs if n == name)
 
     def last_log_line(self, name):
         try:
-            with open(os.path.join(self.logs, name + ".log"), errors="replace") as f:
+            with open(self.log_path(name), errors="replace") as f:
                 lines = [l.strip() for l in f if l.strip()]
             return lines[-1] if lines else f"{name} exited"
         except OSError:
@@ -256,15 +338,72 @@ class Services:
             time.sleep(0.05)
         raise LaunchError(f"{name} did not start serving within {timeout:.0f} s")
 
-    def check_alive(self, names):
-        """Raises if one of `names` failed (actors exit 0 once the learner is done)."""
-        for name, proc in self.procs:
-            if name in names and proc.poll() is not None and proc.returncode != 0:
-                raise LaunchError(f"{name} exited with code {proc.returncode}: {self.last_log_line(name)}")
+    def _stalled(self, name, now):
+        """Why `name` counts as stalled, or None."""
+        status = read_json(self.status_file(name))
+        quiet_since = status["time"] if status and "time" in status else self.started[name]
+        if now - max(quiet_since, self.started[name]) > self.stall_seconds:
+            return f"no status for {now - max(quiet_since, self.started[name]):.0f} s"
+        if status and status.get("seconds_stalled", 0) > self.stall_seconds:
+            return f"unrolls waited {status['seconds_stalled']:.0f} s without training"
+        return None
+
+    def _record(self, name, reason):
+        path = os.path.join(self.logs, "restarts.csv")
+        fresh = not os.path.exists(path)
+        with open(path, "a") as f:
+            if fresh:
+                f.write("time,process,restart,reason\n")
+            f.write(f"{time.time():.3f},{name},{self.restarts[name]},\"{reason}\"\n")
+
+    def supervise(self, names):
+        """Restarts what died or stalled among `names`; raises past the cap.
+        Returns the names that finished (exited with a finished code)."""
+        now = time.time()
+        finished = []
+        for name in names:
+            if name in self.pending:
+                if now >= self.pending[name]:
+                    del self.pending[name]
+                    self._spawn(name, self.argv[name] + self.restart_args[name]()
+                                + [f"--status_file={self.status_file(name)}"])
+                continue
+            proc = self.proc(name)
+            code = proc.poll()
+            if code is not None and code in self.finished_codes[name]:
+                finished.append(name)
+                continue
+            reason = None
+            if code is not None:
+                reason = f"exited with code {code}"
+            else:
+                stalled = self._stalled(name, now)
+                if stalled:
+                    reason = f"made no progress ({stalled})"
+                    proc.kill()
+                    proc.wait()
+            if reason is None:
+                continue
+            last = self.last_log_line(name)
+            if self.restarts[name] >= self.max_restarts:
+                raise LaunchError(f"{name} {reason}, {self.restarts[name]} restarts already (--max-restarts): {last}")
+            delay = min(30.0, 2.0 ** self.restarts[name])
+            self.restarts[name] += 1
+            self._record(name, f"{reason}: {last}".replace('"', "'"))
+            print(f"\nimca train: {name} {reason} ({last}); restart {self.restarts[name]} in {delay:.0f} s",
+                  file=sys.stderr, flush=True)
+            self.pending[name] = now + delay
+        return finished
+
+    def total_restarts(self):
+        return sum(self.restarts.values())
 
     def stop(self, names=None, timeout=30.0):
         """SIGTERM to all of `names` at once, then wait; returns {name: exit code}."""
         codes = {}
+        for name in list(self.pending):
+            if names is None or name in names:
+                del self.pending[name]  # Never started again.
         chosen = [(n, p) for n, p in self.procs if names is None or n in names]
         for name, proc in chosen:
             if proc.poll() is None:
@@ -293,13 +432,13 @@ def fmt_duration(seconds):
     return f"{seconds // 60}m{seconds % 60:02d}s"
 
 
-def progress_line(row, budget):
+def progress_line(row, budget, restarts=0):
     steps = int(row["env_steps"])
     rate = float(row["env_steps_per_sec"])
     eta = (budget - steps) / rate if rate > 0 else 0
     return (f"steps {steps:,}/{budget:,} | {rate:,.0f} steps/s | success {float(row['success_rate']):.1%}"
             f" | return {float(row['episode_return']):.2f} | intrinsic {float(row['intrinsic_reward']):.4f}"
-            f" | ETA {fmt_duration(eta)}")
+            f" | ETA {fmt_duration(eta)}" + (f" | restarts {restarts}" if restarts else ""))
 
 
 # A success rate counts towards "steps to X%" only once it is over a full
@@ -358,12 +497,25 @@ def write_summary(run_dir, config, rows, interrupted):
         "interrupted": interrupted,
         "scenario": config["scenario"], "reward": config["reward"], "credit": config["credit"],
         "permutation": config["permutation"], "seed": config["seed"],
+        # Restarts of each process by the supervisor (logs/restarts.csv says why).
+        "restarts": config.get("restarts", {}),
     }
-    path = os.path.join(run_dir, "summary.json")
-    with open(path + ".tmp", "w") as f:
-        json.dump(summary, f, indent=2)
-    os.replace(path + ".tmp", path)
+    write_json_atomically(os.path.join(run_dir, "summary.json"), summary)
     return summary
+
+
+def write_json_atomically(path, value):
+    """A file a crash leaves old or new, never half (as common/atomic_file.h)."""
+    with open(path + ".tmp", "w") as f:
+        json.dump(value, f, indent=2)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(path + ".tmp", path)
+    fd = os.open(os.path.dirname(path) or ".", os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def plot(run_dir, rows, title):
@@ -409,13 +561,12 @@ def run(args):
     if not args.map:
         config["map"] = os.path.join(ROOT, "maps", args.scenario + ".txt")
     config["map"] = os.path.abspath(config["map"])
-    with open(os.path.join(run_dir, "config.json"), "w") as f:
-        json.dump(config, f, indent=2)
+    write_json_atomically(os.path.join(run_dir, "config.json"), config)
 
     scenario_flags = [f"--scenario={args.scenario}", f"--map={config['map']}", f"--num_agents={args.num_agents}",
                       f"--step_limit={args.step_limit}", f"--view_radius={args.view_radius}",
                       f"--door_timer={args.door_timer}"]
-    services = Services(run_dir)
+    services = Services(run_dir, max_restarts=args.max_restarts, stall_seconds=args.stall_seconds)
     rows = []
     interrupted = False
     stop_requested = []
@@ -426,48 +577,65 @@ def run(args):
         for path in (reward_port_file, learner_port_file):
             if os.path.exists(path):
                 os.remove(path)
+        # A restarted server comes back on the port it had (its clients
+        # reconnect there) and from its saved state.
+        reward_port = []
         rs = services.start("reward_server", [
-            os.path.join(BIN, "reward_server"), f"--listen=127.0.0.1:{args.reward_port}",
-            f"--port_file={reward_port_file}", *scenario_flags, f"--reward={args.reward}",
+            os.path.join(BIN, "reward_server"), f"--port_file={reward_port_file}", *scenario_flags,
+            f"--reward={args.reward}",
             f"--credit={args.credit}", f"--permutation={args.permutation}", f"--beta={args.beta}",
             f"--eta={args.eta}", f"--beta_t={args.beta_t}",
             f"--temperature={args.temperature}", f"--seed={args.seed}",
-            f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}"])
-        reward_port = services.wait_port("reward_server", rs, reward_port_file)
+            f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}",
+            f"--snapshot_every={args.snapshot_every}", f"--listen=127.0.0.1:{args.reward_port}"],
+            restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"])
+        reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
+        reward_port = reward_port[0:1]
+        learner_port = []
         ln = services.start("learner", [
-            os.path.join(BIN, "learner"), f"--listen=127.0.0.1:{args.learner_port}",
-            f"--port_file={learner_port_file}", *scenario_flags, f"--run_dir={run_dir}",
+            os.path.join(BIN, "learner"), f"--port_file={learner_port_file}", *scenario_flags,
+            f"--run_dir={run_dir}", f"--trained_log={os.path.join(run_dir, 'logs', 'trained_unrolls.csv')}",
+            f"--checkpoint_seconds={args.checkpoint_seconds}",
             f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}",
             f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
             f"--seed={args.seed}", f"--edti={str(args.reward == 'edti').lower()}"] + learner_option_flags(args)
-            + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else []))
-        learner_port = services.wait_port("learner", ln, learner_port_file, timeout=60)
+            + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else [])
+            + [f"--listen=127.0.0.1:{args.learner_port}"],
+            # From its newest checkpoint (none yet: from scratch).
+            restart_args=lambda: [f"--listen=127.0.0.1:{learner_port[0]}", "--resume=", "--auto_resume=true"])
+        learner_port.append(services.wait_port("learner", ln, learner_port_file, timeout=60))
         actors = []
         for i in range(args.actors):
             name = f"actor-{i}"
             actors.append(name)
+            # A restarted actor (same id, new incarnation) draws other
+            # episodes than the dead one: its seed moves with the restart.
             services.start(name, [
-                os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port}",
-                f"--reward_server=127.0.0.1:{reward_port}", *scenario_flags,
+                os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port[0]}",
+                f"--reward_server=127.0.0.1:{reward_port[0]}", *scenario_flags,
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
-                f"--seed={args.seed * 1000 + i + 1}", f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}"]
-                + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else []))
+                f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}"]
+                + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else [])
+                + [f"--seed={args.seed * 1000 + i + 1}"],
+                restart_args=lambda name=name, i=i: [
+                    f"--seed={args.seed * 1000 + i + 1 + 1_000_003 * services.restarts[name]}"])
         tty = sys.stderr.isatty()
         last_print = 0.0
-        while ln.poll() is None:
+        learner_done = False
+        while not learner_done:
             if stop_requested:
                 raise KeyboardInterrupt
             time.sleep(0.5)
-            services.check_alive(["reward_server"] + actors)
+            # The learner exits 0 only with its budget trained; actors exit
+            # 0 once it is done.
+            learner_done = "learner" in services.supervise(["reward_server", "learner"] + actors)
             rows = read_metrics(os.path.join(run_dir, "metrics.csv"))
             if rows and not args.quiet and (tty or time.time() - last_print > 10):
-                line = progress_line(rows[-1], args.steps)
+                line = progress_line(rows[-1], args.steps, services.total_restarts())
                 print(("\r" + line + "\033[K") if tty else line, end="" if tty else "\n",
                       file=sys.stderr, flush=True)
                 last_print = time.time()
-        if ln.returncode != 0:
-            raise LaunchError(f"learner exited with code {ln.returncode}: {services.last_log_line('learner')}")
     except KeyboardInterrupt:
         interrupted = True
         print("\nimca train: stopping (actors, learner, reward server)...", file=sys.stderr)
@@ -478,8 +646,8 @@ def run(args):
         codes = services.stop(names=[n for n, _ in services.procs if n.startswith("actor-")])
         codes.update(services.stop(names=["learner"], timeout=120))
         codes.update(services.stop(names=["reward_server"], timeout=120))
-        with open(os.path.join(run_dir, "logs", "exit_codes.json"), "w") as f:
-            json.dump(codes, f, indent=2)
+        write_json_atomically(os.path.join(run_dir, "logs", "exit_codes.json"), codes)
+        config["restarts"] = dict(services.restarts)
         rows = read_metrics(os.path.join(run_dir, "metrics.csv"))
         # summary.json comes last: its presence means the run folder is complete
         # (./imca experiment counts a cell as finished by it).

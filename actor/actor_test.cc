@@ -1,0 +1,165 @@
+// The actor against real in-process services that fail on cue, in the manner
+// of LevelDB's SpecialEnv: a learner stream that drops an ack after the
+// learner accepted the unroll, one that never acks, a reward server that is
+// unavailable once and a scorer that fails once. The actor must deliver every
+// unroll exactly once to training and count every answered Score once.
+#include "actor/actor.h"
+
+#include <atomic>
+#include <memory>
+#include <thread>
+
+#include "common/env.h"
+#include "common/grpc_util.h"
+#include "gtest/gtest.h"
+#include "learner/learner.h"
+#include "learner/learner_service.h"
+#include "reward_server/make_scorer.h"
+#include "reward_server/reward_service.h"
+
+namespace imca {
+namespace {
+
+// The real learner service, but PushUnrolls ends the stream with
+// UNAVAILABLE right after the learner accepted unroll number `drop_ack_of`
+// (its ack is lost), and reads unroll number `hang_on` and then never
+// answers until the client cancels.
+class FlakyLearnerService final : public v1::LearnerService::Service {
+ public:
+  FlakyLearnerService(learner::Learner* learner, int drop_ack_of, int hang_on)
+      : learner_(learner), real_(learner), drop_ack_of_(drop_ack_of), hang_on_(hang_on) {}
+
+  grpc::Status PushUnrolls(grpc::ServerContext* context,
+                           grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) override {
+    v1::PushUnrollsRequest request;
+    while (stream->Read(&request)) {
+      const int arrived = ++arrived_;
+      if (arrived == hang_on_) {
+        while (!context->IsCancelled()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        return grpc::Status(grpc::StatusCode::CANCELLED, "injected: no ack until cancelled");
+      }
+      const absl::Status status = learner_->Push(std::move(*request.mutable_unroll()));
+      if (absl::IsOutOfRange(status) || absl::IsUnavailable(status)) return ToGrpcStatus(status);
+      if (status.ok() && ++accepted_ == drop_ack_of_) {
+        return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: stream lost before the ack");
+      }
+      v1::PushUnrollsResponse ack;
+      ack.set_accepted(status.ok());
+      ack.set_rejection(learner::RejectionOf(status));
+      ack.set_error(std::string(status.message()));
+      if (!stream->Write(ack)) break;
+    }
+    return grpc::Status::OK;
+  }
+  grpc::Status GetPolicy(grpc::ServerContext* context, const v1::GetPolicyRequest* request,
+                         v1::Policy* response) override {
+    return real_.GetPolicy(context, request, response);
+  }
+  grpc::Status GetStatus(grpc::ServerContext* context, const v1::GetStatusRequest* request,
+                         v1::LearnerStatus* response) override {
+    return real_.GetStatus(context, request, response);
+  }
+
+ private:
+  learner::Learner* learner_;
+  learner::LearnerServiceImpl real_;
+  const int drop_ack_of_, hang_on_;
+  std::atomic<int> arrived_{0}, accepted_{0};
+};
+
+// The real reward service, unavailable for the first Score call.
+class FlakyRewardService final : public v1::RewardService::Service {
+ public:
+  explicit FlakyRewardService(reward::RewardServiceImpl* real) : real_(real) {}
+  grpc::Status Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
+                     v1::ScoreResponse* response) override {
+    if (calls_++ == 0) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: reward server restarting");
+    return real_->Score(context, request, response);
+  }
+
+ private:
+  reward::RewardServiceImpl* real_;
+  std::atomic<int> calls_{0};
+};
+
+// A real scorer that fails its second call, before changing anything.
+class FailingOnceScorer final : public reward::Scorer {
+ public:
+  explicit FailingOnceScorer(std::unique_ptr<reward::Scorer> real) : real_(std::move(real)) {}
+  absl::Status Score(const reward::TransitionBatch& batch, bool dry_run, const reward::ScoreOutput& out) override {
+    if (++calls_ == 2) return absl::InternalError("injected: scorer failed");
+    return real_->Score(batch, dry_run, out);
+  }
+  void FillStats(v1::RewardStats* stats) const override { real_->FillStats(stats); }
+  absl::Status Save(const std::string& path) const override { return real_->Save(path); }
+  absl::Status Load(const std::string& path) override { return real_->Load(path); }
+  absl::Status Restore(const std::string& path, bool sync) override { return real_->Restore(path, sync); }
+  std::optional<int64_t> DurableTransitions() const override { return real_->DurableTransitions(); }
+
+ private:
+  std::unique_ptr<reward::Scorer> real_;
+  std::atomic<int> calls_{0};
+};
+
+TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothingTwice) {
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  constexpr int kEnvs = 16, kLength = 16, kIterations = 8;
+
+  learner::LearnerConfig learner_config;
+  learner_config.batch_steps = kEnvs * kLength;  // One unroll per iteration.
+  learner_config.budget_steps = kIterations * kEnvs * kLength;
+  learner_config.max_policy_lag = 100;
+  learner_config.checkpoint_every = 0;
+  learner_config.checkpoint_seconds = 0;
+  learner_config.ppo.hidden = 16;
+  auto learner = learner::Learner::Create(scenario->get(), learner_config);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  FlakyLearnerService learner_service(learner->get(), /*drop_ack_of=*/3, /*hang_on=*/6);
+
+  reward::ScorerConfig scorer_config;
+  scorer_config.credit = reward::Credit::kImca;
+  auto real_scorer = reward::MakeScorer("count", **scenario, scorer_config);
+  ASSERT_TRUE(real_scorer.ok()) << real_scorer.status();
+  FailingOnceScorer scorer(*std::move(real_scorer));
+  reward::RewardServiceImpl reward_impl(scenario->get(), &scorer, "count", scorer_config, "");
+  FlakyRewardService reward_service(&reward_impl);
+
+  int learner_port = 0, reward_port = 0;
+  auto learner_server = StartServer("127.0.0.1:0", {&learner_service}, &learner_port);
+  auto reward_server = StartServer("127.0.0.1:0", {&reward_service}, &reward_port);
+  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
+  std::thread trainer([&] { EXPECT_TRUE((*learner)->Run().ok()); });
+
+  actor::ActorConfig config;
+  config.actor_id = "actor-7";
+  config.num_envs = kEnvs;
+  config.unroll_length = kLength;
+  config.eval_envs = 2;
+  config.rpc_timeout = std::chrono::milliseconds(2000);
+  config.ack_timeout = std::chrono::milliseconds(300);
+  actor::Actor actor(scenario->get(), config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
+                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  EXPECT_TRUE(actor.Run().ok());
+  trainer.join();
+
+  const v1::LearnerStatus status = (*learner)->Status();
+  EXPECT_TRUE(status.done());
+  EXPECT_EQ(status.env_steps(), learner_config.budget_steps);
+  // The lost ack's unroll was resent and recognised; the hung one was resent
+  // and accepted (the learner never had it).
+  EXPECT_EQ(status.unrolls_duplicate(), 1);
+  EXPECT_GE(actor.unrolls_resent(), 2);
+  EXPECT_EQ(status.actor_incarnations(), 1);
+  // Every unroll the actor delivered was accepted once: none lost, none twice.
+  EXPECT_EQ(status.unrolls_received(), actor.unrolls_pushed());
+  // The reward server counted each answered Score once: the injected
+  // failures changed nothing and their unrolls were scored on the retry.
+  EXPECT_EQ(reward_impl.Stats().transitions_scored(), actor.transitions_scored());
+  EXPECT_EQ(reward_impl.Stats().requests_served(), actor.transitions_scored() / (kEnvs * kLength));
+  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+}
+
+}  // namespace
+}  // namespace imca
