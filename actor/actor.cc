@@ -330,7 +330,14 @@ absl::Status Actor::Run() {
     if (status.ok()) {
       in_hand = false;
       ++unrolls_pushed_;
-      ++version_unrolls_;
+      // It counts towards this version's share only if it was acted with the
+      // version now in use: after REJECTION_AHEAD the actor went back to the
+      // learner's older policy, whose share it has not started.
+      if (policy_.has_value() && unroll.policy_version() == policy_->version()) {
+        ++version_unrolls_;
+      } else {
+        version_unrolls_ = 0;
+      }
       backoff.Reset();
       WriteStatus("acting", /*force=*/false);
     } else if (absl::IsInvalidArgument(status)) {

@@ -161,5 +161,118 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
   (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
 }
 
+// The learner an actor talks to is replaced by one that starts over at
+// version 0 (a restart with no checkpoint to go on from), in synchronous
+// mode: the actor's unrolls in hand are ahead of it, and after refetching
+// its policy the actor must act the new learner's whole share of version 0.
+class SwitchingLearnerService final : public v1::LearnerService::Service {
+ public:
+  SwitchingLearnerService(learner::Learner* first, learner::Learner* second, int64_t switch_at)
+      : first_(first), second_(second), first_service_(first), second_service_(second), switch_at_(switch_at) {}
+
+  grpc::Status PushUnrolls(grpc::ServerContext* context,
+                           grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) override {
+    v1::PushUnrollsRequest request;
+    while (stream->Read(&request)) {
+      if (Switch()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: learner restarted");
+      const absl::Status status = Current()->Push(std::move(*request.mutable_unroll()));
+      if (absl::IsOutOfRange(status) || absl::IsUnavailable(status)) return ToGrpcStatus(status);
+      v1::PushUnrollsResponse ack;
+      ack.set_accepted(status.ok());
+      ack.set_rejection(learner::RejectionOf(status));
+      ack.set_error(std::string(status.message()));
+      if (!stream->Write(ack)) break;
+    }
+    return grpc::Status::OK;
+  }
+  grpc::Status GetPolicy(grpc::ServerContext* context, const v1::GetPolicyRequest* request,
+                         v1::Policy* response) override {
+    Switch();
+    return (switched_ ? second_service_ : first_service_).GetPolicy(context, request, response);
+  }
+  grpc::Status GetStatus(grpc::ServerContext* context, const v1::GetStatusRequest* request,
+                         v1::LearnerStatus* response) override {
+    return (switched_ ? second_service_ : first_service_).GetStatus(context, request, response);
+  }
+
+ private:
+  learner::Learner* Current() { return switched_ ? second_ : first_; }
+  // True the first time: the first learner reached switch_at and is gone.
+  bool Switch() {
+    if (switched_ || first_->Status().policy_version() < switch_at_) return false;
+    bool expected = false;
+    if (!switched_.compare_exchange_strong(expected, true)) return false;
+    first_->Stop();
+    return true;
+  }
+
+  learner::Learner* first_;
+  learner::Learner* second_;
+  learner::LearnerServiceImpl first_service_, second_service_;
+  const int64_t switch_at_;
+  std::atomic<bool> switched_{false};
+};
+
+// Last in this file: on failure it ends the actor with RequestShutdown().
+TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  constexpr int kEnvs = 8, kLength = 16, kUnrollsPerVersion = 3;
+  learner::LearnerConfig config;
+  config.synchronous = true;
+  config.batch_steps = kUnrollsPerVersion * kEnvs * kLength;
+  config.checkpoint_every = 0;
+  config.checkpoint_seconds = 0;
+  config.ppo.hidden = 16;
+  config.budget_steps = 100 * config.batch_steps;
+  auto first = learner::Learner::Create(scenario->get(), config);
+  config.budget_steps = 4 * config.batch_steps;
+  auto second = learner::Learner::Create(scenario->get(), config);
+  ASSERT_TRUE(first.ok() && second.ok());
+  SwitchingLearnerService service(first->get(), second->get(), /*switch_at=*/3);
+  reward::ScorerConfig scorer_config;
+  scorer_config.credit = reward::Credit::kImca;
+  auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
+  ASSERT_TRUE(scorer.ok());
+  reward::RewardServiceImpl reward(scenario->get(), scorer->get(), "count", scorer_config, "");
+  int learner_port = 0, reward_port = 0;
+  auto learner_server = StartServer("127.0.0.1:0", {&service}, &learner_port);
+  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
+  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
+  std::thread first_trainer([&] { EXPECT_TRUE((*first)->Run().ok()); });
+  std::thread second_trainer([&] { EXPECT_TRUE((*second)->Run().ok()); });
+
+  actor::ActorConfig actor_config;
+  actor_config.num_envs = kEnvs;
+  actor_config.unroll_length = kLength;
+  actor_config.eval_envs = 1;
+  actor_config.sync_unrolls = kUnrollsPerVersion;
+  actor_config.rpc_timeout = std::chrono::milliseconds(2000);
+  actor::Actor actor(scenario->get(), actor_config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
+                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  std::atomic<bool> finished{false};
+  std::thread acting([&] {
+    EXPECT_TRUE(actor.Run().ok());
+    finished = true;
+  });
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!finished && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(finished) << "the actor waits for a version the new learner cannot train (it lacks the unrolls)";
+  if (!finished) {
+    RequestShutdown();
+    (*second)->Stop();
+  }
+  acting.join();
+  first_trainer.join();
+  second_trainer.join();
+  EXPECT_TRUE((*second)->Status().done());
+  EXPECT_EQ((*second)->Status().env_steps(), 4 * config.batch_steps);
+  EXPECT_GE((*first)->Status().policy_version(), 3);
+  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+}
+
 }  // namespace
 }  // namespace imca

@@ -278,6 +278,7 @@ class Services:
         self.pending = {}  # name -> time at which to start it again.
         self.log_names = {}
         self.finished_codes = {}
+        self._learner_steps, self._learner_moved = None, time.time()  # check_deadlock's.
 
     def status_file(self, name):
         return os.path.join(self.logs, name + ".status.json")
@@ -394,6 +395,27 @@ class Services:
                   file=sys.stderr, flush=True)
             self.pending[name] = now + delay
         return finished
+
+    def check_deadlock(self, learner, actors):
+        """A net under protocol bugs: the learner has not trained for
+        stall_seconds while every actor waits for a policy (each side waits
+        for the other). Kills the actors, which supervise() then restarts:
+        a fresh actor acts with whatever policy the learner has."""
+        now = time.time()
+        status = read_json(self.status_file(learner)) or {}
+        steps = status.get("env_steps")
+        if steps != self._learner_steps or learner in self.pending:
+            self._learner_steps, self._learner_moved = steps, now
+            return
+        if now - self._learner_moved < self.stall_seconds or any(a in self.pending for a in actors):
+            return
+        states = [(read_json(self.status_file(a)) or {}).get("state") for a in actors]
+        if states and all(state == "waiting_policy" for state in states):
+            print(f"\nimca train: the learner has not trained for {now - self._learner_moved:.0f} s while every "
+                  "actor waits for a policy; restarting the actors", file=sys.stderr, flush=True)
+            for a in actors:
+                self.proc(a).kill()
+            self._learner_moved = now
 
     def total_restarts(self):
         return sum(self.restarts.values())
@@ -630,6 +652,7 @@ def run(args):
             # The learner exits 0 only with its budget trained; actors exit
             # 0 once it is done.
             learner_done = "learner" in services.supervise(["reward_server", "learner"] + actors)
+            services.check_deadlock("learner", actors)
             rows = read_metrics(os.path.join(run_dir, "metrics.csv"))
             if rows and not args.quiet and (tty or time.time() - last_print > 10):
                 line = progress_line(rows[-1], args.steps, services.total_restarts())
