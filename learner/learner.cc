@@ -172,18 +172,31 @@ absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cance
         return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
       },
       this);
+  // Not queued after all: its steps no longer count towards this version's
+  // batch, and a resend of it is not a duplicate.
+  const auto withdraw = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    if (config_.synchronous && version_ == admitted_version) version_steps_ -= Steps(queued.unroll);
+  };
   // No wait without a timeout: every second, whether the pusher is still there.
+  bool gone = false;
   while (!mu_.AwaitWithTimeout(room, absl::Seconds(1))) {
     if (cancelled != nullptr && cancelled()) {
-      --pushers_waiting_;
-      // Not queued: its steps no longer count towards this version's batch,
-      // and a resend of it is not a duplicate.
-      if (config_.synchronous && version_ == admitted_version) version_steps_ -= Steps(queued.unroll);
-      return absl::CancelledError("the pusher went away while the queue was full");
+      gone = true;
+      break;
     }
   }
   --pushers_waiting_;
+  // Checked again after the wait: the pusher may have gone (and resent this
+  // unroll on a new stream, which another push may have queued meanwhile).
+  if (gone || (cancelled != nullptr && cancelled())) {
+    withdraw();
+    return absl::CancelledError("the pusher went away while the queue was full");
+  }
   if (stopping_) return StoppedStatus();
+  if (absl::Status duplicate = CheckNotDuplicate(queued.unroll); !duplicate.ok()) {
+    withdraw();
+    return duplicate;
+  }
   const v1::Unroll& u = queued.unroll;
   ++unrolls_received_;
   actors_.insert(u.actor_id());
@@ -209,17 +222,21 @@ absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cance
   return absl::OkStatus();
 }
 
+absl::Status Learner::CheckNotDuplicate(const v1::Unroll& unroll) {
+  if (unroll.incarnation() == 0) return absl::OkStatus();
+  auto it = accepted_.find(unroll.actor_id());
+  if (it != accepted_.end() && it->second.incarnation == unroll.incarnation() &&
+      unroll.sequence() <= it->second.sequence) {
+    ++unrolls_duplicate_;
+    return absl::AlreadyExistsError(absl::StrCat("duplicate: unroll ", unroll.sequence(), " of ",
+                                                 unroll.actor_id(), " was accepted before"));
+  }
+  return absl::OkStatus();
+}
+
 absl::Status Learner::Admit(const v1::Unroll& unroll) {
   if (stopping_) return StoppedStatus();
-  if (unroll.incarnation() != 0) {
-    auto it = accepted_.find(unroll.actor_id());
-    if (it != accepted_.end() && it->second.incarnation == unroll.incarnation() &&
-        unroll.sequence() <= it->second.sequence) {
-      ++unrolls_duplicate_;
-      return absl::AlreadyExistsError(absl::StrCat("duplicate: unroll ", unroll.sequence(), " of ",
-                                                   unroll.actor_id(), " was accepted before"));
-    }
-  }
+  IMCA_RETURN_IF_ERROR(CheckNotDuplicate(unroll));
   if (unroll.policy_version() > version_) {
     // A learner restarted from an older checkpoint: the actor must refetch.
     ++unrolls_rejected_;
@@ -315,8 +332,12 @@ v1::LearnerStatus Learner::Status() const {
   // Exact: a pusher whose Await does not block holds mu_ from its increment
   // to its decrement, so only blocked pushers are ever seen.
   status.set_pushers_waiting(static_cast<int32_t>(pushers_waiting_));
-  status.set_seconds_stalled(
-      queue_.empty() ? 0.0 : std::chrono::duration<double>(std::chrono::steady_clock::now() - last_progress_).count());
+  const auto now = std::chrono::steady_clock::now();
+  status.set_seconds_stalled(queue_.empty() || training_since_.has_value()
+                                 ? 0.0
+                                 : std::chrono::duration<double>(now - last_progress_).count());
+  status.set_seconds_training(
+      training_since_.has_value() ? std::chrono::duration<double>(now - *training_since_).count() : 0.0);
   status.set_unrolls_duplicate(unrolls_duplicate_);
   status.set_actor_incarnations(actor_incarnations_);
   status.set_minibatches_skipped(minibatches_skipped_);
@@ -510,7 +531,16 @@ absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
 }
 
 absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoBatch& batch) {
+  {
+    absl::MutexLock lock(&mu_);
+    training_since_ = std::chrono::steady_clock::now();
+  }
   absl::StatusOr<PpoStats> trained = trainer_->Train(batch);
+  {
+    absl::MutexLock lock(&mu_);
+    training_since_.reset();
+    last_progress_ = std::chrono::steady_clock::now();
+  }
   PpoStats stats;
   if (trained.ok()) {
     stats = *std::move(trained);
@@ -548,6 +578,13 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoB
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
     minibatches_skipped_ += stats.minibatches_skipped;
+    for (const v1::Unroll& u : unrolls) {
+      if (u.incarnation() == 0) continue;
+      Accepted& trained = trained_[u.actor_id()];
+      if (trained.incarnation != u.incarnation() || trained.sequence < u.sequence()) {
+        trained = Accepted{u.incarnation(), u.sequence()};
+      }
+    }
     last_intrinsic_ = credit.intrinsic;
   }
   if (!config_.trained_log.empty()) {
@@ -686,10 +723,11 @@ absl::Status Learner::SaveCheckpoint() {
   std::string meta = absl::StrCat("version ", s.policy_version(), "\nenv_steps ", s.env_steps(), "\nwall_seconds ",
                                   s.wall_seconds(), "\niteration ", iteration_, "\n");
   {
-    // The newest accepted unroll of each actor incarnation, so that a
-    // restarted learner still recognises resends.
+    // The newest trained unroll of each actor incarnation, so that a
+    // restarted learner still recognises resends of what it trained (and
+    // takes again what was only queued: that was lost with the process).
     absl::MutexLock lock(&mu_);
-    for (const auto& [actor, accepted] : accepted_) {
+    for (const auto& [actor, accepted] : trained_) {
       absl::StrAppend(&meta, "accepted ", accepted.incarnation, " ", accepted.sequence, " ", actor, "\n");
     }
   }
@@ -791,6 +829,7 @@ absl::Status Learner::RestoreFrom(const std::string& meta_path) {
   absl::MutexLock lock(&mu_);
   version_ = version;
   env_steps_ = env_steps;
+  trained_ = accepted;
   accepted_ = std::move(accepted);
   policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
   return absl::OkStatus();

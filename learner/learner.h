@@ -171,6 +171,9 @@ class Learner {
 
   // Push's checks of version, staleness and stopping; counts what it refuses.
   absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // ALREADY_EXISTS (counted) if `unroll` is not newer than its actor
+  // incarnation's last accepted one.
+  absl::Status CheckNotDuplicate(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Restore() of one checkpoint, by its .meta file.
   absl::Status RestoreFrom(const std::string& meta_path);
   QueuedUnroll Featurise(v1::Unroll unroll) const;
@@ -242,15 +245,19 @@ class Learner {
   int64_t pushers_waiting_ ABSL_GUARDED_BY(mu_) = 0;  // Pushes blocked in the wait for room.
   // The training thread's last dequeue or publication.
   std::chrono::steady_clock::time_point last_progress_ ABSL_GUARDED_BY(mu_) = std::chrono::steady_clock::now();
+  // Set while the trainer runs an iteration's PPO epochs.
+  std::optional<std::chrono::steady_clock::time_point> training_since_ ABSL_GUARDED_BY(mu_);
   int64_t unrolls_duplicate_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t actor_incarnations_ ABSL_GUARDED_BY(mu_) = 0;
-  // The newest accepted unroll of each actor (by actor_id): its incarnation
-  // and sequence number. Saved with each checkpoint.
+  // The newest accepted (queued) unroll of each actor (by actor_id): its
+  // incarnation and sequence number.
   struct Accepted {
     uint64_t incarnation = 0;
     int64_t sequence = 0;
   };
   absl::flat_hash_map<std::string, Accepted> accepted_ ABSL_GUARDED_BY(mu_);
+  // The same for trained unrolls: what checkpoints save.
+  absl::flat_hash_map<std::string, Accepted> trained_ ABSL_GUARDED_BY(mu_);
   int64_t minibatches_skipped_ ABSL_GUARDED_BY(mu_) = 0;
   bool done_ ABSL_GUARDED_BY(mu_) = false;
   std::set<std::string> actors_ ABSL_GUARDED_BY(mu_);

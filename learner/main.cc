@@ -217,11 +217,12 @@ int main(int argc, char** argv) {
         status_file,
         absl::StrFormat("{\"policy_version\": %d, \"env_steps\": %d, \"unrolls_received\": %d, "
                         "\"unrolls_duplicate\": %d, \"actor_incarnations\": %d, \"queue_depth\": %d, "
-                        "\"pushers_waiting\": %d, \"seconds_stalled\": %.3f, \"batches_dropped\": %d, "
+                        "\"pushers_waiting\": %d, \"seconds_stalled\": %.3f, \"seconds_training\": %.3f, "
+                        "\"batches_dropped\": %d, "
                         "\"done\": %s, \"time\": %.3f}\n",
                         s.policy_version(), s.env_steps(), s.unrolls_received(), s.unrolls_duplicate(),
                         s.actor_incarnations(), s.queue_depth(), s.pushers_waiting(), s.seconds_stalled(),
-                        s.batches_dropped(), s.done() ? "true" : "false", UnixSeconds()));
+                        s.seconds_training(), s.batches_dropped(), s.done() ? "true" : "false", UnixSeconds()));
     if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
   };
   std::thread watcher([&] {

@@ -213,17 +213,25 @@ absl::Status CountStore::Commit(int64_t transitions) {
   record += payload;
   // One write of the whole record (O_APPEND): a kill -9 after it returns
   // loses nothing, the page cache belongs to the kernel.
+  // A failed write is cut back off, so that the records after it (later
+  // answered Scores) are not hidden behind a torn one on replay.
+  const auto fail = [&](const char* what) {
+    const int saved_errno = errno;
+    if (::ftruncate(journal_fd_, journal_bytes_) != 0) {
+      std::fprintf(stderr, "reward_server: cannot cut a failed journal record: %s\n", std::strerror(errno));
+    }
+    return absl::InternalError(absl::StrCat("journal ", what, ": ", std::strerror(saved_errno)));
+  };
   for (size_t done = 0; done < record.size();) {
     const ssize_t wrote = ::write(journal_fd_, record.data() + done, record.size() - done);
     if (wrote < 0) {
       if (errno == EINTR) continue;
-      return absl::InternalError(absl::StrCat("journal write: ", std::strerror(errno)));
+      return fail("write");
     }
     done += static_cast<size_t>(wrote);
   }
-  if (sync_ && ::fdatasync(journal_fd_) != 0) {
-    return absl::InternalError(absl::StrCat("journal fdatasync: ", std::strerror(errno)));
-  }
+  if (sync_ && ::fdatasync(journal_fd_) != 0) return fail("fdatasync");
+  journal_bytes_ += static_cast<off_t>(record.size());
   return absl::OkStatus();
 }
 
@@ -238,9 +246,13 @@ absl::Status CountStore::OpenJournal(int64_t epoch) {
   }
   // The new file's name must survive too.
   const fs::path dir = fs::path(journal).parent_path();
-  IMCA_RETURN_IF_ERROR(SyncPath(dir.empty() ? "." : dir.string()));
+  if (absl::Status synced = SyncPath(dir.empty() ? "." : dir.string()); !synced.ok()) {
+    ::close(fd);
+    return synced;
+  }
   if (journal_fd_ >= 0) ::close(journal_fd_);
   journal_fd_ = fd;
+  journal_bytes_ = static_cast<off_t>(header.size());
   epoch_ = epoch;
   return absl::OkStatus();
 }

@@ -1,6 +1,8 @@
 #ifndef IMCA_REWARD_SERVER_COUNT_TABLE_H_
 #define IMCA_REWARD_SERVER_COUNT_TABLE_H_
 
+#include <sys/types.h>
+
 #include <cstdint>
 #include <iosfwd>
 #include <string>
@@ -108,6 +110,7 @@ class CountStore {
   std::string tag_;
   int64_t epoch_ = 0;  // Of the open journal.
   int journal_fd_ = -1;
+  off_t journal_bytes_ = 0;  // Of complete records (and the header) in the open journal.
   bool sync_ = false;
   std::string pending_;  // Entries since the last Commit.
 };

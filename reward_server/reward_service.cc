@@ -63,10 +63,27 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
     response->mutable_influences()->Resize(count * n * n, 0.0f);
     out.influences = response->mutable_influences()->mutable_data();
   }
-  if (absl::Status status = scorer_->Score(batch, request->dry_run(), out); !status.ok()) {
+  // A retried Score (same actor incarnation and sequence as its last one:
+  // the first answer was lost) is answered again but not counted again.
+  bool dry_run = request->dry_run();
+  if (!dry_run && unroll.incarnation() != 0) {
+    absl::MutexLock lock(&scored_mu_);
+    auto [it, inserted] = last_scored_.try_emplace(unroll.actor_id(), unroll.incarnation(), unroll.sequence());
+    if (!inserted && it->second.first == unroll.incarnation() && unroll.sequence() <= it->second.second) {
+      dry_run = true;
+      ++requests_repeated_;
+    } else if (last_scored_.size() <= kMaxTrackedActors) {
+      it->second = {unroll.incarnation(), unroll.sequence()};
+    }
+  }
+  if (absl::Status status = scorer_->Score(batch, dry_run, out); !status.ok()) {
+    if (!dry_run && unroll.incarnation() != 0) {
+      absl::MutexLock lock(&scored_mu_);
+      last_scored_.erase(unroll.actor_id());  // Not scored: its retry must count.
+    }
     return ToGrpcStatus(status);
   }
-  if (!request->dry_run()) transitions_scored_ += count;
+  if (!dry_run) transitions_scored_ += count;
   ++requests_served_;
   return grpc::Status::OK;
 }
@@ -91,6 +108,7 @@ v1::RewardStats RewardServiceImpl::Stats() const {
   response->set_transitions_scored(scorer_->DurableTransitions().value_or(transitions_scored_.load()));
   response->set_requests_served(requests_served_.load());
   response->set_requests_rejected(requests_rejected_.load());
+  response->set_requests_repeated(requests_repeated_.load());
   scorer_->FillStats(response);
   return stats;
 }

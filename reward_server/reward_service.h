@@ -2,9 +2,13 @@
 #define IMCA_REWARD_SERVER_REWARD_SERVICE_H_
 
 #include <atomic>
+#include <utility>
 #include <memory>
 #include <string>
 
+#include "absl/base/thread_annotations.h"
+#include "absl/container/flat_hash_map.h"
+#include "absl/synchronization/mutex.h"
 #include "common/env.h"
 #include "imca/v1/reward_service.grpc.pb.h"
 #include "reward_server/credit.h"
@@ -45,6 +49,12 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   std::atomic<int64_t> transitions_scored_{0};
   std::atomic<int64_t> requests_served_{0};
   std::atomic<int64_t> requests_rejected_{0};
+  std::atomic<int64_t> requests_repeated_{0};
+  // The newest scored (incarnation, sequence) of each actor id, to answer a
+  // retry without counting it twice; at most kMaxTrackedActors ids.
+  static constexpr size_t kMaxTrackedActors = 1 << 16;
+  absl::Mutex scored_mu_;
+  absl::flat_hash_map<std::string, std::pair<uint64_t, int64_t>> last_scored_ ABSL_GUARDED_BY(scored_mu_);
 };
 
 }  // namespace imca::reward

@@ -190,6 +190,32 @@ TEST_F(RewardServiceTest, ServesHealthCheckingAndReflection) {
   EXPECT_THAT(response, HasSubstr("imca.v1.RewardService"));
 }
 
+TEST_F(RewardServiceTest, ARetriedScoreIsAnsweredButCountedOnce) {
+  v1::ScoreRequest request = Valid();
+  request.mutable_unroll()->set_actor_id("actor-3");
+  request.mutable_unroll()->set_incarnation(42);
+  request.mutable_unroll()->set_sequence(1);
+  v1::ScoreResponse first, again;
+  ASSERT_TRUE(Score(request, &first).ok());
+  const int64_t keys = Stats().distinct_keys();
+  // The same unroll again (its first answer was lost): answered, not counted.
+  ASSERT_TRUE(Score(request, &again).ok());
+  EXPECT_EQ(again.num_transitions(), first.num_transitions());
+  v1::RewardStats stats = Stats();
+  EXPECT_EQ(stats.transitions_scored(), 32);
+  EXPECT_EQ(stats.requests_repeated(), 1);
+  EXPECT_EQ(stats.distinct_keys(), keys);
+  // The next sequence, or the same one from a new incarnation, counts.
+  request.mutable_unroll()->set_sequence(2);
+  ASSERT_TRUE(Score(request, &again).ok());
+  request.mutable_unroll()->set_incarnation(43);
+  request.mutable_unroll()->set_sequence(1);
+  ASSERT_TRUE(Score(request, &again).ok());
+  stats = Stats();
+  EXPECT_EQ(stats.transitions_scored(), 3 * 32);
+  EXPECT_EQ(stats.requests_repeated(), 1);
+}
+
 TEST_F(RewardServiceTest, SnapshotWithoutPathIsFailedPrecondition) {
   grpc::ClientContext context;
   v1::SnapshotResponse response;

@@ -342,11 +342,19 @@ class Services:
     def _stalled(self, name, now):
         """Why `name` counts as stalled, or None."""
         status = read_json(self.status_file(name))
-        quiet_since = status["time"] if status and "time" in status else self.started[name]
-        if now - max(quiet_since, self.started[name]) > self.stall_seconds:
-            return f"no status for {now - max(quiet_since, self.started[name]):.0f} s"
-        if status and status.get("seconds_stalled", 0) > self.stall_seconds:
+        if status is None or "time" not in status:
+            # Starting up (a reward server replaying a long journal, a learner
+            # loading a checkpoint) gets a longer grace before its first status.
+            if now - self.started[name] > 2 * self.stall_seconds + 60:
+                return f"no status {now - self.started[name]:.0f} s after its start"
+            return None
+        quiet = now - max(status["time"], self.started[name])
+        if quiet > self.stall_seconds:
+            return f"no status for {quiet:.0f} s"
+        if status.get("seconds_stalled", 0) > self.stall_seconds:
             return f"unrolls waited {status['seconds_stalled']:.0f} s without training"
+        if status.get("seconds_training", 0) > 10 * self.stall_seconds:
+            return f"one PPO update has run for {status['seconds_training']:.0f} s"
         return None
 
     def _record(self, name, reason):
@@ -404,7 +412,7 @@ class Services:
         now = time.time()
         status = read_json(self.status_file(learner)) or {}
         steps = status.get("env_steps")
-        if steps != self._learner_steps or learner in self.pending:
+        if steps != self._learner_steps or learner in self.pending or status.get("seconds_training", 0) > 0:
             self._learner_steps, self._learner_moved = steps, now
             return
         if now - self._learner_moved < self.stall_seconds or any(a in self.pending for a in actors):
@@ -610,7 +618,8 @@ def run(args):
             f"--temperature={args.temperature}", f"--seed={args.seed}",
             f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}",
             f"--snapshot_every={args.snapshot_every}", f"--listen=127.0.0.1:{args.reward_port}"],
-            restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"])
+            restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"],
+            finished_codes=())  # It never finishes by itself: any exit is a death.
         reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
         reward_port = reward_port[0:1]
         learner_port = []
@@ -618,6 +627,9 @@ def run(args):
             os.path.join(BIN, "learner"), f"--port_file={learner_port_file}", *scenario_flags,
             f"--run_dir={run_dir}", f"--trained_log={os.path.join(run_dir, 'logs', 'trained_unrolls.csv')}",
             f"--checkpoint_seconds={args.checkpoint_seconds}",
+            # Stopped by a signal it did not get from us (exit 143, not 0):
+            # restarted, not taken for finished.
+            "--signal_exit_code=143",
             f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}",
             f"--lr={args.lr}",
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
@@ -637,7 +649,9 @@ def run(args):
                 os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port[0]}",
                 f"--reward_server=127.0.0.1:{reward_port[0]}", *scenario_flags,
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
-                f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}"]
+                f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}", "--signal_exit_code=143",
+                # Its own wait for an ack gives up before the supervisor's.
+                f"--ack_timeout_ms={int(args.stall_seconds * 500)}"]
                 + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else [])
                 + [f"--seed={args.seed * 1000 + i + 1}"],
                 restart_args=lambda name=name, i=i: [
