@@ -271,7 +271,9 @@ def soak(args, base):
             samples.append((time.time() - start, rss, status.get("distinct_keys", 0) + status.get("distinct_local_keys", 0),
                             learner.get("env_steps", 0)))
     finally:
-        launcher.send_signal(signal.SIGINT)
+        # SIGTERM, not SIGINT: a shell starting this in the background makes
+        # its children ignore SIGINT.
+        launcher.send_signal(signal.SIGTERM)
         launcher.wait(timeout=300)
     with open(os.path.join(base, "rss.csv"), "w") as f:
         names = sorted(samples[-1][1])
