@@ -1,6 +1,7 @@
 #include "common/env.h"
 
 #include <algorithm>
+#include <limits>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
@@ -59,6 +60,46 @@ class CoopNav final : public Scenario {
 
  private:
   uint32_t all_collected_;
+};
+
+// spread (MPE's simple_spread on a grid): every step each agent receives
+// minus the sum, over the landmarks (the map's treasures), of the Euclidean
+// distance between the landmark's cell and its nearest agent's. No episode
+// ends early; success means every landmark covered at the last step.
+class Spread final : public Scenario {
+ public:
+  Spread(GridMap map, const ScenarioConfig& config, int n)
+      : Scenario(std::move(map), config, n, 0, 5, 25, 0.0f, 0.0f) {}
+
+  absl::string_view name() const override { return "spread"; }
+  int num_object_bits() const override { return 0; }  // Landmarks are never used up.
+
+  void Reset(Rng& rng, int32_t* state) const override {
+    state[kObjectsIndex] = 0;
+    SpawnAgents(state + 1, rng);
+    state[step_index()] = 0;
+  }
+
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    const int t = StepAgents(state, actions, rng);
+    double cost = 0;
+    bool covered = true;
+    for (int32_t landmark : map_.treasures()) {
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int a = 0; a < num_agents_; ++a) {
+        const int32_t cell = state[AgentIndex(a)];
+        const double dr = map_.Row(cell) - map_.Row(landmark), dc = map_.Col(cell) - map_.Col(landmark);
+        nearest = std::min(nearest, std::sqrt(dr * dr + dc * dc));
+      }
+      cost += nearest;
+      covered &= nearest == 0;
+    }
+    for (int a = 0; a < num_agents_; ++a) rewards[a] = static_cast<float>(-cost);
+    StepOutcome outcome;
+    outcome.truncated = t >= step_limit_;
+    outcome.success = outcome.truncated && covered;
+    return outcome;
+  }
 };
 
 // Doors opened by switches, with EDTI's door-open interval `doi` as
@@ -298,6 +339,11 @@ const std::map<std::string, ScenarioSpec>& Specs() {
         },
         [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
           return std::make_unique<Pass>(std::move(m), c, n);
+        }}},
+      {"spread",
+       {3, [](const GridMap& m) { return m.treasures().empty() ? "needs at least one landmark 'T'" : ""; },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<Spread>(std::move(m), c, n);
         }}},
       {"secret_room",
        {2,

@@ -256,3 +256,46 @@ TEST(FeaturizerTest, ViewRadiusHidesFarAgentsAndThePrey) {
 
 }  // namespace
 }  // namespace imca::env
+
+namespace imca::env {
+namespace {
+
+// spread: -sum over landmarks of the distance to the nearest agent, the same
+// for every agent, every step; no early end; success iff all are covered at
+// the last step.
+TEST(SpreadTest, DenseRewardIsMinusTheLandmarksDistanceToTheNearestAgent) {
+  ScenarioConfig config;
+  config.name = "spread";
+  config.num_agents = 2;
+  config.step_limit = 3;
+  auto map = GridMap::Parse("#######\n#T...T#\n#.S.S.#\n#######\n", "spread_test");
+  ASSERT_TRUE(map.ok()) << map.status();
+  auto scenario = MakeScenarioWithMap(config, *std::move(map));
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  const Scenario& s = **scenario;
+  const GridMap& m = s.map();
+  std::vector<int32_t> state(s.state_size(), 0);
+  state[AgentIndex(0)] = 2 * m.width() + 2;  // Row 2, col 2.
+  state[AgentIndex(1)] = 2 * m.width() + 4;  // Row 2, col 4.
+  ASSERT_TRUE(s.ValidateState(state.data()).ok());
+  Rng rng(1);
+  float rewards[kMaxAgents];
+  // Both stay: landmark (1,1) is sqrt(2) from agent 0, landmark (1,5) sqrt(2) from agent 1.
+  int32_t stay[2] = {kStay, kStay};
+  StepOutcome out = s.Step(state.data(), stay, rng, rewards);
+  EXPECT_NEAR(rewards[0], -2 * std::sqrt(2.0), 1e-5);
+  EXPECT_EQ(rewards[1], rewards[0]);
+  EXPECT_FALSE(out.terminated || out.truncated || out.success);
+  // Agent 0 up-left onto its landmark in two moves; agent 1 stays.
+  int32_t up_left[2][2] = {{kUp, kStay}, {kLeft, kStay}};
+  out = s.Step(state.data(), up_left[0], rng, rewards);
+  EXPECT_NEAR(rewards[0], -(1.0 + std::sqrt(2.0)), 1e-5);  // Agent 0 at (1,2): 1 from (1,1).
+  out = s.Step(state.data(), up_left[1], rng, rewards);
+  EXPECT_NEAR(rewards[0], -std::sqrt(2.0), 1e-5);
+  EXPECT_TRUE(out.truncated);  // The step limit, never a termination.
+  EXPECT_FALSE(out.terminated);
+  EXPECT_FALSE(out.success);  // Landmark (1,5) is not covered.
+}
+
+}  // namespace
+}  // namespace imca::env

@@ -18,7 +18,7 @@ import time
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-SCENARIOS = ["coop_nav", "predator_prey", "multi_room", "twin_buttons", "pass", "secret_room"]
+SCENARIOS = ["coop_nav", "predator_prey", "multi_room", "twin_buttons", "pass", "secret_room", "spread"]
 REWARDS = ["count", "rnd", "sf", "eiti", "edti"]
 # Reward kinds whose per-agent bonus is the method itself (BASELINES.md 1):
 # they run with credit independent (or none) and beta 1, their own
@@ -405,7 +405,7 @@ class Services:
         return finished
 
     def check_deadlock(self, learner, actors):
-        """A net under protocol bugs: the learner has not trained for
+        """A net under protocol bugs: the learner has not trained for twice
         stall_seconds while every actor waits for a policy (each side waits
         for the other). Kills the actors, which supervise() then restarts:
         a fresh actor acts with whatever policy the learner has."""
@@ -415,10 +415,13 @@ class Services:
         if steps != self._learner_steps or learner in self.pending or status.get("seconds_training", 0) > 0:
             self._learner_steps, self._learner_moved = steps, now
             return
-        if now - self._learner_moved < self.stall_seconds or any(a in self.pending for a in actors):
+        # Twice the stall limit, and only with every actor alive and saying
+        # so: a silent actor is the stall detector's to restart, first.
+        if now - self._learner_moved < 2 * self.stall_seconds or any(a in self.pending for a in actors):
             return
-        states = [(read_json(self.status_file(a)) or {}).get("state") for a in actors]
-        if states and all(state == "waiting_policy" for state in states):
+        statuses = [read_json(self.status_file(a)) or {} for a in actors]
+        if statuses and all(st.get("state") == "waiting_policy" and now - st.get("time", 0) < self.stall_seconds / 2
+                            for st in statuses):
             print(f"\nimca train: the learner has not trained for {now - self._learner_moved:.0f} s while every "
                   "actor waits for a policy; restarting the actors", file=sys.stderr, flush=True)
             for a in actors:
