@@ -43,11 +43,7 @@ class FlakyLearnerService final : public v1::LearnerService::Service {
       if (status.ok() && ++accepted_ == drop_ack_of_) {
         return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: stream lost before the ack");
       }
-      v1::PushUnrollsResponse ack;
-      ack.set_accepted(status.ok());
-      ack.set_rejection(learner::RejectionOf(status));
-      ack.set_error(std::string(status.message()));
-      if (!stream->Write(ack)) break;
+      if (!stream->Write(learner::AckOf(status, learner_->CurrentPolicy()->version()))) break;
     }
     return grpc::Status::OK;
   }
@@ -177,11 +173,7 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
       if (Switch()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: learner restarted");
       const absl::Status status = Current()->Push(std::move(*request.mutable_unroll()));
       if (absl::IsOutOfRange(status) || absl::IsUnavailable(status)) return ToGrpcStatus(status);
-      v1::PushUnrollsResponse ack;
-      ack.set_accepted(status.ok());
-      ack.set_rejection(learner::RejectionOf(status));
-      ack.set_error(std::string(status.message()));
-      if (!stream->Write(ack)) break;
+      if (!stream->Write(learner::AckOf(status, Current()->CurrentPolicy()->version()))) break;
     }
     return grpc::Status::OK;
   }

@@ -39,12 +39,6 @@ class CoopNav final : public Scenario {
     return (static_cast<uint32_t>(state[kObjectsIndex]) >> k) & 1u;
   }
 
-  void Reset(Rng& rng, int32_t* state) const override {
-    state[kObjectsIndex] = 0;
-    SpawnAgents(state + 1, rng);
-    state[step_index()] = 0;
-  }
-
   StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
     const int t = StepAgents(state, actions, rng);
     uint32_t z = static_cast<uint32_t>(state[kObjectsIndex]);
@@ -73,12 +67,6 @@ class Spread final : public Scenario {
 
   absl::string_view name() const override { return "spread"; }
   int num_object_bits() const override { return 0; }  // Landmarks are never used up.
-
-  void Reset(Rng& rng, int32_t* state) const override {
-    state[kObjectsIndex] = 0;
-    SpawnAgents(state + 1, rng);
-    state[step_index()] = 0;
-  }
 
   StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
     const int t = StepAgents(state, actions, rng);
@@ -125,12 +113,6 @@ class DoorScenario : public Scenario {
   int door_timer() const override { return timer_; }
   int num_object_bits() const override { return map_.num_doors() * bits_; }
   bool DoorOpen(const int32_t* state, int door) const override { return Field(state, door) > 0; }
-
-  void Reset(Rng& rng, int32_t* state) const override {
-    state[kObjectsIndex] = 0;
-    SpawnAgents(state + 1, rng);
-    state[step_index()] = 0;
-  }
 
   StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
     const int t = StepAgents(state, actions, rng);
@@ -484,6 +466,12 @@ void Scenario::MoveAgents(const int32_t* state, int32_t* cells, int count, const
 int Scenario::StepAgents(int32_t* state, const int32_t* actions, Rng& rng) const {
   MoveAgents(state, state + 1, num_agents_, actions, state + 1 + num_agents_, num_npcs_, rng);
   return ++state[step_index()];
+}
+
+void Scenario::Reset(Rng& rng, int32_t* state) const {
+  state[kObjectsIndex] = 0;
+  SpawnAgents(state + 1, rng);
+  state[step_index()] = 0;
 }
 
 StepOutcome Scenario::Finish(int t, bool success, float* rewards) const {

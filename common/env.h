@@ -82,8 +82,9 @@ class Scenario {
   virtual int num_object_bits() const = 0;
   const GridMap& map() const { return map_; }
 
-  // Writes a fresh initial state into state[0..state_size).
-  virtual void Reset(Rng& rng, int32_t* state) const = 0;
+  // Writes a fresh initial state into state[0..state_size). By default:
+  // no object bits, the agents spawned (SpawnAgents), step 0.
+  virtual void Reset(Rng& rng, int32_t* state) const;
   // Applies the joint action (actions[0..n), each in [0, num_actions)) to
   // `state` in place and writes each agent's extrinsic reward.
   virtual StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng,

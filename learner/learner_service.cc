@@ -8,8 +8,7 @@ namespace {
 
 constexpr int kMaxPolicyWaitMs = 60000;
 
-}  // namespace
-
+// Learner::Push's refusal codes, one per reason (learner.h).
 v1::Rejection RejectionOf(const absl::Status& status) {
   switch (status.code()) {
     case absl::StatusCode::kOk: return v1::REJECTION_NONE;
@@ -19,6 +18,17 @@ v1::Rejection RejectionOf(const absl::Status& status) {
     case absl::StatusCode::kAlreadyExists: return v1::REJECTION_DUPLICATE;
     default: return v1::REJECTION_INVALID;
   }
+}
+
+}  // namespace
+
+v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version) {
+  v1::PushUnrollsResponse ack;
+  ack.set_accepted(status.ok());
+  ack.set_rejection(RejectionOf(status));
+  if (!status.ok()) ack.set_error(std::string(status.message()));
+  ack.set_policy_version(policy_version);
+  return ack;
 }
 
 grpc::Status LearnerServiceImpl::PushUnrolls(
@@ -32,12 +42,7 @@ grpc::Status LearnerServiceImpl::PushUnrolls(
     if (absl::IsUnavailable(status) || absl::IsOutOfRange(status) || absl::IsCancelled(status)) {
       return ToGrpcStatus(status);
     }
-    v1::PushUnrollsResponse ack;
-    ack.set_accepted(status.ok());
-    ack.set_rejection(RejectionOf(status));
-    if (!status.ok()) ack.set_error(std::string(status.message()));
-    ack.set_policy_version(learner_->CurrentPolicy()->version());
-    if (!stream->Write(ack)) break;
+    if (!stream->Write(AckOf(status, learner_->CurrentPolicy()->version()))) break;
   }
   return grpc::Status::OK;
 }

@@ -19,7 +19,8 @@ float CountBonus(uint32_t count_before) {
 }  // namespace
 
 CountNovelty::CountNovelty(const env::Scenario& scenario, const ScorerConfig& config)
-    : scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
+    : CountedNovelty(2),
+      scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
       n_(scenario.num_agents()),
       num_actions_(scenario.num_actions()),
       k_(scenario.state_size()),
@@ -98,32 +99,6 @@ std::string CountNovelty::ConfigTag() const {
   return absl::StrCat(kMagic, " ", scenario_tag_, " n=", n_, " A=", num_actions_,
                       " exact=", codec_.exact(), " credit=", CreditName(config_.credit),
                       " permutation=", PermutationName(config_.permutation));
-}
-
-absl::Status CountNovelty::Save(const std::string& path) const {
-  absl::MutexLock save_lock(&save_mu_);
-  // Copy under the lock (fast), write without it, so Score is not blocked by I/O.
-  CountStore::Snapshot snapshot;
-  {
-    absl::MutexLock lock(&mu_);
-    IMCA_ASSIGN_OR_RETURN(snapshot, store_.TakeSnapshot());
-  }
-  return CountStore::WriteSnapshot(path, ConfigTag(), snapshot);
-}
-
-absl::Status CountNovelty::Load(const std::string& path) {
-  absl::MutexLock lock(&mu_);
-  return store_.Load(path, ConfigTag());
-}
-
-absl::Status CountNovelty::Restore(const std::string& path, bool sync) {
-  absl::MutexLock lock(&mu_);
-  return store_.Restore(path, ConfigTag(), sync);
-}
-
-std::optional<int64_t> CountNovelty::DurableTransitions() const {
-  absl::MutexLock lock(&mu_);
-  return store_.transitions();
 }
 
 }  // namespace imca::reward

@@ -8,7 +8,7 @@
 #include "absl/synchronization/mutex.h"
 #include "common/env.h"
 #include "common/rng.h"
-#include "reward_server/count_table.h"
+#include "reward_server/counted_novelty.h"
 #include "reward_server/credit.h"
 #include "reward_server/joint_key.h"
 #include "reward_server/novelty.h"
@@ -28,17 +28,13 @@ namespace imca::reward {
 // permutation of the pairs (lookups use agent order), as the paper's 4.3.
 // For independent credit, permutation other than off makes homogeneous agents
 // share one local table. Thread-safe (one mutex).
-class CountNovelty final : public Novelty {
+class CountNovelty final : public CountedNovelty {
  public:
   CountNovelty(const env::Scenario& scenario, const ScorerConfig& config);
 
   bool Supports(Credit credit) const override { return true; }
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
-  absl::Status Save(const std::string& path) const override;
-  absl::Status Load(const std::string& path) override;
-  absl::Status Restore(const std::string& path, bool sync) override;
-  std::optional<int64_t> DurableTransitions() const override;
 
   // Current count of the joint pair (state, actions) under this scorer's key
   // mapping (canonical order if configured, agent order otherwise).
@@ -47,7 +43,7 @@ class CountNovelty final : public Novelty {
  private:
   void ComputeOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
                   const NoveltyOutput& out, int64_t i) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  std::string ConfigTag() const;
+  std::string ConfigTag() const override;
 
   const std::string scenario_tag_;  // Scenario name and map size, for snapshots.
   const int n_;
@@ -58,11 +54,6 @@ class CountNovelty final : public Novelty {
 
   static constexpr int kGlobal = 0;  // The joint table.
   static constexpr int kLocal = 1;   // The per-agent tables (one key space).
-  // Serialises whole snapshot writes; taken before mu_.
-  mutable absl::Mutex save_mu_;
-  mutable absl::Mutex mu_;
-  // Mutable: taking a snapshot (Save, const) starts the next journal.
-  mutable CountStore store_ ABSL_GUARDED_BY(mu_){2};
   Rng rng_ ABSL_GUARDED_BY(mu_);
 };
 

@@ -200,17 +200,17 @@ void CountStore::Add(int table, uint64_t key, uint32_t count) {
 absl::Status CountStore::Commit(int64_t transitions) {
   transitions_ += transitions;
   if (journal_fd_ < 0 || (pending_.empty() && transitions == 0)) return absl::OkStatus();
+  // Record: magic, payload bytes, checksum; payload: transitions, entries.
   std::string record;
   record.reserve(16 + 8 + pending_.size());
-  std::string payload;
-  payload.reserve(8 + pending_.size());
-  Put(&payload, transitions);
-  payload += pending_;
-  pending_.clear();
   Put(&record, kRecordMagic);
-  Put(&record, static_cast<uint32_t>(payload.size()));
-  Put(&record, Fnv1a(payload.data(), payload.size()));
-  record += payload;
+  Put(&record, static_cast<uint32_t>(8 + pending_.size()));
+  Put(&record, uint64_t{0});  // The checksum, filled in below.
+  Put(&record, transitions);
+  record += pending_;
+  pending_.clear();
+  const uint64_t checksum = Fnv1a(record.data() + 16, record.size() - 16);
+  std::memcpy(record.data() + 8, &checksum, sizeof(checksum));
   // One write of the whole record (O_APPEND): a kill -9 after it returns
   // loses nothing, the page cache belongs to the kernel.
   // A failed write is cut back off, so that the records after it (later

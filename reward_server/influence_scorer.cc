@@ -56,7 +56,8 @@ void AddTransition(int n, const int32_t* cells, const int32_t* actions, const in
 
 InfluenceNovelty::InfluenceNovelty(const env::Scenario& scenario, const ScorerConfig& config,
                                    const InfluenceConfig& influence)
-    : scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
+    : CountedNovelty(2),
+      scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
       n_(scenario.num_agents()),
       k_(scenario.state_size()),
       step_index_(scenario.step_index()),
@@ -134,31 +135,6 @@ void InfluenceNovelty::FillStats(v1::RewardStats* stats) const {
 std::string InfluenceNovelty::ConfigTag() const {
   return absl::StrCat(kMagic, " ", scenario_tag_, " n=", n_, " kind=", influence_.edti ? "edti" : "eiti",
                       " log=", influence_.log_form);
-}
-
-absl::Status InfluenceNovelty::Save(const std::string& path) const {
-  absl::MutexLock save_lock(&save_mu_);
-  CountStore::Snapshot snapshot;
-  {
-    absl::MutexLock lock(&mu_);
-    IMCA_ASSIGN_OR_RETURN(snapshot, store_.TakeSnapshot());
-  }
-  return CountStore::WriteSnapshot(path, ConfigTag(), snapshot);
-}
-
-absl::Status InfluenceNovelty::Load(const std::string& path) {
-  absl::MutexLock lock(&mu_);
-  return store_.Load(path, ConfigTag());
-}
-
-absl::Status InfluenceNovelty::Restore(const std::string& path, bool sync) {
-  absl::MutexLock lock(&mu_);
-  return store_.Restore(path, ConfigTag(), sync);
-}
-
-std::optional<int64_t> InfluenceNovelty::DurableTransitions() const {
-  absl::MutexLock lock(&mu_);
-  return store_.transitions();
 }
 
 }  // namespace imca::reward

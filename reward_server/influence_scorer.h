@@ -6,7 +6,7 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/synchronization/mutex.h"
 #include "common/env.h"
-#include "reward_server/count_table.h"
+#include "reward_server/counted_novelty.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty.h"
 
@@ -37,7 +37,7 @@ struct InfluenceConfig {
   bool log_form = false;   // The paper's log ratio instead of the released code's 1 - 1/x.
 };
 
-class InfluenceNovelty final : public Novelty {
+class InfluenceNovelty final : public CountedNovelty {
  public:
   InfluenceNovelty(const env::Scenario& scenario, const ScorerConfig& config, const InfluenceConfig& influence);
 
@@ -45,15 +45,11 @@ class InfluenceNovelty final : public Novelty {
   bool ReturnsInfluences() const override { return influence_.edti; }
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
-  absl::Status Save(const std::string& path) const override;
-  absl::Status Load(const std::string& path) override;
-  absl::Status Restore(const std::string& path, bool sync) override;
-  std::optional<int64_t> DurableTransitions() const override;
 
  private:
   float Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
                   const absl::flat_hash_map<uint64_t, uint32_t>& pending) const ABSL_SHARED_LOCKS_REQUIRED(mu_);
-  std::string ConfigTag() const;
+  std::string ConfigTag() const override;
 
   const std::string scenario_tag_;
   const int n_;
@@ -63,10 +59,6 @@ class InfluenceNovelty final : public Novelty {
 
   static constexpr int kTransitions = 0;  // The four tables of every pair, by key tag.
   static constexpr int kCells = 1;        // N_i(s_i) of the curiosity.
-  mutable absl::Mutex save_mu_;  // Taken before mu_.
-  mutable absl::Mutex mu_;
-  // Mutable: taking a snapshot (Save, const) starts the next journal.
-  mutable CountStore store_ ABSL_GUARDED_BY(mu_){2};
 };
 
 }  // namespace imca::reward

@@ -21,26 +21,8 @@ LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
 SMALL = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--batch-steps", "1024", "--quiet",
          "--checkpoint-seconds", "1", "--snapshot-every", "2"]
 BUDGET = 400_000
-
-
-def pid_of(run_dir, binary, actor_id=None):
-    """The pid of the run's live `binary` process (by its argv), or None."""
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/cmdline", "rb") as f:
-                argv = f.read().decode(errors="replace").split("\0")
-            with open(f"/proc/{entry}/stat") as f:
-                if f.read().split(") ")[-1].startswith("Z"):
-                    continue
-        except OSError:
-            continue
-        if os.path.basename(argv[0]) != binary or not any(run_dir in a for a in argv):
-            continue
-        if actor_id is None or f"--actor_id={actor_id}" in argv:
-            return int(entry)
-    return None
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+import bench  # noqa: E402  (run_processes: a run's live processes by name)
 
 
 def read_json(path):
@@ -72,9 +54,9 @@ class Drill:
             time.sleep(0.1)
         raise AssertionError("no progress")
 
-    def signal(self, binary, sig, actor_id=None):
-        pid = pid_of(self.run_dir, binary, actor_id)
-        assert pid is not None, f"no {binary} {actor_id or ''} running"
+    def signal(self, name, sig):
+        pid = bench.run_processes(self.run_dir).get(name)
+        assert pid is not None, f"no {name} running"
         os.kill(pid, sig)
         return pid
 
@@ -135,7 +117,7 @@ class DrillTest(unittest.TestCase):
         with tempfile.TemporaryDirectory() as out:
             drill = Drill(out)
             drill.wait_for_iterations(20)
-            drill.signal("actor", signal.SIGKILL, actor_id="actor-1")
+            drill.signal("actor-1", signal.SIGKILL)
             self.finished_with_one_restart(drill, "actor-1")
             # The new incarnation trained, under its own id, and the dead one's
             # data stopped where it died.
@@ -169,7 +151,7 @@ class DrillTest(unittest.TestCase):
         with tempfile.TemporaryDirectory() as out:
             drill = Drill(out, ["--stall-seconds", "10"])
             drill.wait_for_iterations(10)
-            pid = drill.signal("actor", signal.SIGSTOP, actor_id="actor-0")
+            pid = drill.signal("actor-0", signal.SIGSTOP)
             try:
                 self.finished_with_one_restart(drill, "actor-0")
             finally:

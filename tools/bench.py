@@ -234,6 +234,9 @@ def run_processes(run_dir):
         try:
             with open(f"/proc/{entry}/cmdline", "rb") as f:
                 argv = f.read().decode(errors="replace").split("\0")
+            with open(f"/proc/{entry}/stat") as f:
+                if f.read().split(") ")[-1].startswith("Z"):
+                    continue  # A zombie: dead, not yet reaped.
         except OSError:
             continue
         binary = os.path.basename(argv[0])
@@ -306,14 +309,6 @@ def soak(args, base):
     print(f"\nsamples: {os.path.join(base, 'rss.csv')}")
 
 
-def rows_of(path):
-    try:
-        with open(path) as f:
-            return list(csv.DictReader(f))
-    except OSError:
-        return []
-
-
 def drill(args, base):
     """The acceptance drill by hand: one run of --steps with kill -9 of the
     reward server, then actor-1, then the learner, --gap seconds apart
@@ -377,7 +372,7 @@ def drill(args, base):
             print(f"reward server killed at {at:.0f} s: it had counted {before.get('transitions_scored', 0):,} "
                   f"transitions (status, <= 1 s old); restarted with {restored:,} restored")
         elif victim == "actor-1":
-            trained = [r for r in rows_of(os.path.join(logs, "trained_unrolls.csv"))
+            trained = [r for r in launch.read_metrics(os.path.join(logs, "trained_unrolls.csv"))
                        if r["actor_id"] == "actor-1" and r["incarnation"] == before.get("incarnation")]
             print(f"actor-1 killed at {at:.0f} s: its incarnation {before.get('incarnation')} had "
                   f"{before.get('unrolls_pushed', 0)} unrolls acked (status, <= 1 s old), {len(trained)} trained "

@@ -624,7 +624,6 @@ def run(args):
             restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"],
             finished_codes=())  # It never finishes by itself: any exit is a death.
         reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
-        reward_port = reward_port[0:1]
         learner_port = []
         ln = services.start("learner", [
             os.path.join(BIN, "learner"), f"--port_file={learner_port_file}", *scenario_flags,
