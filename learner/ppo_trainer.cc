@@ -23,6 +23,8 @@
 #include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "learner/lap.h"
+#include "nn/mlp.h"
+#include "nn/running_moments.h"
 
 namespace imca::learner {
 
@@ -77,66 +79,14 @@ constexpr double kAdvantageEps = 1e-8;
 constexpr double kMinReturnVar = 1e-4;
 // A recorded log-probability may round slightly above 0 when p ~ 1.
 constexpr float kMaxLogProb = 1e-4f;
-constexpr double kLayerNormEps = 1e-5;
 
-// An MLP of three Linear layers with tanh after the first two. Orthogonal
-// weights (`hidden_gain` for hidden layers, `last_gain` for the output layer)
-// and zero biases, the usual PPO initialisation. With `layer_norm`, a
-// LayerNorm (eps 1e-5, weight 1, bias 0) on the input and after each hidden
-// tanh, as on-policy's MLPBase (feature normalisation, then Linear -> act ->
-// LayerNorm per hidden layer).
-class MlpImpl : public torch::nn::Module {
- public:
-  MlpImpl(int64_t in, int64_t hidden, int64_t out, double hidden_gain, double last_gain,
-          bool layer_norm) {
-    const int64_t sizes[] = {in, hidden, hidden, out};
-    if (layer_norm) {
-      input_norm_ = register_module(
-          "input_norm", torch::nn::LayerNorm(torch::nn::LayerNormOptions({in}).eps(kLayerNormEps)));
-    }
-    for (int i = 0; i < 3; ++i) {
-      torch::nn::Linear layer(sizes[i], sizes[i + 1]);
-      torch::nn::init::orthogonal_(layer->weight, i == 2 ? last_gain : hidden_gain);
-      torch::nn::init::zeros_(layer->bias);
-      layers_.push_back(register_module(std::to_string(i), layer));
-      if (layer_norm && i < 2) {
-        norms_.push_back(register_module(
-            absl::StrCat("norm", i),
-            torch::nn::LayerNorm(torch::nn::LayerNormOptions({hidden}).eps(kLayerNormEps))));
-      }
-    }
-  }
-
-  torch::Tensor forward(torch::Tensor x) {
-    if (!input_norm_.is_empty()) x = input_norm_->forward(x);
-    for (size_t i = 0; i < layers_.size(); ++i) {
-      x = layers_[i]->forward(x);
-      if (i + 1 < layers_.size()) {
-        x = torch::tanh(x);
-        if (!norms_.empty()) x = norms_[i]->forward(x);
-      }
-    }
-    return x;
-  }
-
-  const std::vector<torch::nn::Linear>& layers() const { return layers_; }
-  // Empty without layer_norm.
-  const torch::nn::LayerNorm& input_norm() const { return input_norm_; }
-  const std::vector<torch::nn::LayerNorm>& norms() const { return norms_; }
-
- private:
-  torch::nn::LayerNorm input_norm_{nullptr};
-  std::vector<torch::nn::Linear> layers_;
-  std::vector<torch::nn::LayerNorm> norms_;
-};
-TORCH_MODULE(Mlp);
 
 // Everything the optimisers are bound to. Load builds a fresh one and swaps
 // it in only when the whole checkpoint has been read, so a failed load
 // changes nothing.
 struct Model {
-  Mlp actor{nullptr};
-  Mlp critic{nullptr};
+  nn::Mlp actor{nullptr};
+  nn::Mlp critic{nullptr};
   // One group per optimiser: {actor's and critic's} with one optimiser, or
   // {actor's}, {critic's} with separate ones. Each group's gradient norm is
   // clipped on its own.
@@ -150,11 +100,20 @@ struct Model {
 
 Model BuildModel(const PpoConfig& config, int obs_dim, int critic_dim, int num_actions) {
   Model model;
-  model.actor = Mlp(obs_dim, config.hidden, num_actions, config.hidden_gain, /*last_gain=*/0.01,
-                    config.layer_norm);
+  // Three Linear layers, tanh after the first two, orthogonal weights
+  // (last layer gain 0.01 for the actor, 1 for the critic), zero biases: the
+  // usual PPO initialisation; actor and critic from streams 1 and 2 of the seed.
+  const auto mlp = [&](int64_t in, int64_t out, double last_gain, uint64_t stream) {
+    return nn::Mlp(nn::MlpOptions({in, config.hidden, config.hidden, out})
+                       .activation(nn::Activation::kTanh)
+                       .hidden_gain(config.hidden_gain)
+                       .last_gain(last_gain)
+                       .layer_norm(config.layer_norm)
+                       .seed(nn::SubSeed(config.seed, stream)));
+  };
+  model.actor = mlp(obs_dim, num_actions, /*last_gain=*/0.01, 1);
   // Outputs: normalised extrinsic (and intrinsic) values.
-  model.critic = Mlp(critic_dim, config.hidden, config.value_heads, config.hidden_gain,
-                     /*last_gain=*/1.0, config.layer_norm);
+  model.critic = mlp(critic_dim, config.value_heads, /*last_gain=*/1.0, 2);
   std::vector<torch::Tensor> actor = model.actor->parameters();
   std::vector<torch::Tensor> critic = model.critic->parameters();
   if (config.separate_optimizers) {
@@ -170,57 +129,8 @@ Model BuildModel(const PpoConfig& config, int obs_dim, int critic_dim, int num_a
   return model;
 }
 
-// Running mean and (population) variance of a scalar stream, merging whole
-// batches with the parallel algorithm of Chan et al. (as in OpenAI baselines'
-// RunningMeanStd). It starts as a tiny pseudo-sample (count 1e-4) with mean 0
-// and variance 1, so the first batch dominates and nothing divides by 0.
-class RunningMeanVar {
- public:
-  void Update(const std::vector<float>& x) {
-    const double n = static_cast<double>(x.size());
-    if (n == 0) return;
-    double batch_mean = 0;
-    for (float v : x) batch_mean += v;
-    batch_mean /= n;
-    double batch_m2 = 0;
-    for (float v : x) batch_m2 += (v - batch_mean) * (v - batch_mean);
-    const double delta = batch_mean - mean_;
-    const double total = count_ + n;
-    const double m2 = var_ * count_ + batch_m2 + delta * delta * count_ * n / total;
-    mean_ += delta * n / total;
-    var_ = m2 / total;
-    count_ = total;
-  }
-
-  double mean() const { return mean_; }
-  double stddev() const { return std::sqrt(std::max(var_, kMinReturnVar)); }
-
-  // [mean, var, count] as float64, for checkpoints.
-  torch::Tensor ToTensor() const { return torch::tensor({mean_, var_, count_}, torch::kFloat64); }
-
-  static absl::StatusOr<RunningMeanVar> FromTensor(const torch::Tensor& t,
-                                                   const std::string& name) {
-    if (t.dim() != 1 || t.size(0) != 3) {
-      return absl::InvalidArgumentError(absl::StrCat("checkpoint ", name, " is not a [3] tensor"));
-    }
-    const torch::Tensor d = t.to(torch::kFloat64).contiguous();
-    RunningMeanVar r;
-    r.mean_ = d[0].item<double>();
-    r.var_ = d[1].item<double>();
-    r.count_ = d[2].item<double>();
-    if (!std::isfinite(r.mean_) || !std::isfinite(r.var_) || !(r.var_ >= 0) ||
-        !std::isfinite(r.count_) || !(r.count_ > 0)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("checkpoint ", name, " holds invalid statistics"));
-    }
-    return r;
-  }
-
- private:
-  double mean_ = 0;
-  double var_ = 1;
-  double count_ = 1e-4;
-};
+// The return normaliser's std, floored (kMinReturnVar).
+double ReturnStd(const nn::RunningMoments& norm) { return std::sqrt(std::max(norm.scalar_var(), kMinReturnVar)); }
 
 // The batch as tensors, advantages and value targets already normalised.
 struct TrainData {
@@ -293,9 +203,9 @@ torch::Tensor NormaliseAdvantages(const torch::Tensor& advantages) {
   return (centred / (std + kAdvantageEps)).to(torch::kFloat32);
 }
 
-torch::Tensor NormaliseReturns(const std::vector<float>& returns, const RunningMeanVar& norm) {
+torch::Tensor NormaliseReturns(const std::vector<float>& returns, const nn::RunningMoments& norm) {
   const torch::Tensor r = CopyFloats(returns, {static_cast<int64_t>(returns.size())});
-  return ((r.to(torch::kFloat64) - norm.mean()) / norm.stddev()).to(torch::kFloat32);
+  return ((r.to(torch::kFloat64) - norm.scalar_mean()) / ReturnStd(norm)).to(torch::kFloat32);
 }
 
 absl::Status CheckSize(const char* field, size_t actual, int64_t expected) {
@@ -440,7 +350,6 @@ struct PpoTrainer::Impl {
         num_actions_(num_actions),
         generator_(at::detail::createCPUGenerator(config.seed)) {
     torch::set_num_threads(config.threads);
-    torch::manual_seed(config.seed);  // Makes the initial weights a function of the seed.
     model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
     if (config.concurrent_critic) critic_thread_ = std::make_unique<SideThread>(config.threads);
   }
@@ -458,9 +367,9 @@ struct PpoTrainer::Impl {
   const int critic_dim_;
   const int num_actions_;
   Model model_;
-  RunningMeanVar ext_norm_;  // Returns of the extrinsic value head.
-  RunningMeanVar int_norm_;  // Returns of the intrinsic value head.
-  RunningMeanVar voi_norm_;  // Returns of the interaction head (value_heads 3).
+  nn::RunningMoments ext_norm_;  // Returns of the extrinsic value head.
+  nn::RunningMoments int_norm_;  // Returns of the intrinsic value head.
+  nn::RunningMoments voi_norm_;  // Returns of the interaction head (value_heads 3).
   at::Generator generator_;  // Minibatch shuffling only; saved in checkpoints.
   std::unique_ptr<SideThread> critic_thread_;  // With config.concurrent_critic.
 };
@@ -680,7 +589,9 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   sums.clipped += ((ratio - 1.0).abs() > config_.clip).sum().item<int64_t>();
   sums.samples += indices.numel();
   if (last_epoch) {
-    sums.kl += ((ratio - 1.0) - log_ratio).to(torch::kFloat64).sum().item<double>();
+    // In float64: (r - 1) - log r >= 0, but float32 rounds it below 0 near r = 1.
+    const torch::Tensor log_ratio64 = log_ratio.to(torch::kFloat64);
+    sums.kl += (torch::expm1(log_ratio64) - log_ratio64).sum().item<double>();
     sums.kl_samples += indices.numel();
   }
   return absl::OkStatus();
@@ -768,15 +679,15 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
   archive.read("value_norm_ext", ext_tensor);
   archive.read("value_norm_int", int_tensor);
   archive.read("generator", generator_state);
-  IMCA_ASSIGN_OR_RETURN(RunningMeanVar ext_norm,
-                        RunningMeanVar::FromTensor(ext_tensor, "value_norm_ext"));
-  IMCA_ASSIGN_OR_RETURN(RunningMeanVar int_norm,
-                        RunningMeanVar::FromTensor(int_tensor, "value_norm_int"));
-  RunningMeanVar voi_norm = voi_norm_;
+  IMCA_ASSIGN_OR_RETURN(nn::RunningMoments ext_norm,
+                        nn::RunningMoments::FromTensor(ext_tensor, 1, "value_norm_ext"));
+  IMCA_ASSIGN_OR_RETURN(nn::RunningMoments int_norm,
+                        nn::RunningMoments::FromTensor(int_tensor, 1, "value_norm_int"));
+  nn::RunningMoments voi_norm = voi_norm_;
   if (config_.value_heads == 3) {
     torch::Tensor voi_tensor;
     archive.read("value_norm_voi", voi_tensor);
-    IMCA_ASSIGN_OR_RETURN(voi_norm, RunningMeanVar::FromTensor(voi_tensor, "value_norm_voi"));
+    IMCA_ASSIGN_OR_RETURN(voi_norm, nn::RunningMoments::FromTensor(voi_tensor, 1, "value_norm_voi"));
   }
   at::Generator generator = at::detail::createCPUGenerator();
   generator.set_state(generator_state);
@@ -859,9 +770,9 @@ absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float
                                              {batch, impl_->critic_dim_}, torch::kFloat32);
     const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
     const auto v = out.accessor<double, 2>();
-    const double ext_std = impl_->ext_norm_.stddev(), ext_mean = impl_->ext_norm_.mean();
-    const double int_std = impl_->int_norm_.stddev(), int_mean = impl_->int_norm_.mean();
-    const double voi_std = impl_->voi_norm_.stddev(), voi_mean = impl_->voi_norm_.mean();
+    const double ext_std = ReturnStd(impl_->ext_norm_), ext_mean = impl_->ext_norm_.scalar_mean();
+    const double int_std = ReturnStd(impl_->int_norm_), int_mean = impl_->int_norm_.scalar_mean();
+    const double voi_std = ReturnStd(impl_->voi_norm_), voi_mean = impl_->voi_norm_.scalar_mean();
     const int heads = impl_->config_.value_heads;
     for (int64_t i = 0; i < batch; ++i) {
       v_ext[i] = static_cast<float>(v[i][0] * ext_std + ext_mean);
@@ -894,7 +805,7 @@ v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
   policy.set_architecture(layer_norm ? "mlp_tanh_layernorm" : "mlp_tanh");
   policy.set_obs_dim(impl_->obs_dim_);
   policy.set_num_actions(impl_->num_actions_);
-  const Mlp& actor = impl_->model_.actor;
+  const nn::Mlp& actor = impl_->model_.actor;
   if (layer_norm) {
     AddTensor("policy.input_norm.weight", actor->input_norm()->weight, policy);
     AddTensor("policy.input_norm.bias", actor->input_norm()->bias, policy);

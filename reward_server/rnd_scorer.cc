@@ -11,12 +11,15 @@
 #include "common/rng.h"
 #include "reward_server/joint_input.h"
 #include "reward_server/joint_key.h"
-#include "reward_server/torch_mlp.h"
+#include "nn/archive.h"
+#include "nn/mlp.h"
+#include "nn/running_moments.h"
+#include "nn/torch_status.h"
 
 namespace imca::reward {
 namespace {
 
-constexpr char kMagic[] = "IMCA-RND-1";
+constexpr char kMagic[] = "IMCA-RND-2";  // 2: moments as one [2 dim + 1] tensor each.
 constexpr double kEps = 1e-8;
 
 std::vector<int64_t> Sizes(int64_t in, const RndConfig& config) {
@@ -26,10 +29,22 @@ std::vector<int64_t> Sizes(int64_t in, const RndConfig& config) {
   return sizes;
 }
 
+// A snapshot's moments; throws (LoadArchive's DATA_LOSS) if they are bad.
+nn::RunningMoments ReadMoments(const torch::Tensor& t, int64_t dim, const std::string& name) {
+  absl::StatusOr<nn::RunningMoments> moments = nn::RunningMoments::FromTensor(t, dim, name);
+  if (!moments.ok()) throw std::runtime_error(std::string(moments.status().message()));
+  return *std::move(moments);
+}
+
 // One RND pair with its normalisers and the predictor's optimiser.
 struct Model {
-  Model(int64_t in, const RndConfig& config)
-      : target(Sizes(in, config)), predictor(Sizes(in, config)), obs(in), ret(1), normalize(config.normalize) {
+  // Target and predictor draw their initial weights from streams 1 and 2 of `seed`.
+  Model(int64_t in, const RndConfig& config, uint64_t seed)
+      : target(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 1))),
+        predictor(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 2))),
+        obs(in),
+        ret(1),
+        normalize(config.normalize) {
     for (auto& p : target->parameters()) p.set_requires_grad(false);
     optimizer = std::make_unique<torch::optim::Adam>(
         predictor->parameters(), torch::optim::AdamOptions(config.learning_rate));
@@ -37,7 +52,7 @@ struct Model {
 
   torch::Tensor Normalize(const torch::Tensor& x) const {
     if (!normalize) return x;
-    return ((x - obs.mean.to(torch::kFloat32)) / torch::sqrt(obs.var.to(torch::kFloat32) + kEps)).clamp(-5.0, 5.0);
+    return ((x - obs.mean().to(torch::kFloat32)) / torch::sqrt(obs.var().to(torch::kFloat32) + kEps)).clamp(-5.0, 5.0);
   }
 
   // Raw novelty of each normalised row.
@@ -61,12 +76,12 @@ struct Model {
     torch::Tensor v = torch::eye(A, torch::kFloat32).unsqueeze(0).expand({n, A, A}).contiguous();
     if (normalize) {
       const auto cols = torch::indexing::Slice(action_offset, action_offset + n * A);
-      const torch::Tensor mean = obs.mean.index({cols}).to(torch::kFloat32).view({n, 1, A});
-      const torch::Tensor std = torch::sqrt(obs.var.index({cols}).to(torch::kFloat32) + kEps).view({n, 1, A});
+      const torch::Tensor mean = obs.mean().index({cols}).to(torch::kFloat32).view({n, 1, A});
+      const torch::Tensor std = torch::sqrt(obs.var().index({cols}).to(torch::kFloat32) + kEps).view({n, 1, A});
       v = ((v - mean) / std).clamp(-5.0, 5.0);
     }
     const torch::Tensor slots = torch::arange(n, torch::kInt64).unsqueeze(0).expand({N, n});
-    auto embed = [&](Mlp& net) {
+    auto embed = [&](nn::Mlp& net) {
       auto& layers = net->layers();
       const torch::Tensor& w = layers[0]->weight;  // [H][D]
       // c [n][A][H]: the first layer's response to slot s taking action u.
@@ -80,7 +95,7 @@ struct Model {
     return (embed(target) - embed(predictor)).pow(2).mean(-1);
   }
 
-  double RewardStd() const { return normalize ? std::sqrt(ret.var.item<double>() + kEps) : 1.0; }
+  double RewardStd() const { return normalize ? std::sqrt(ret.scalar_var() + kEps) : 1.0; }
 
   void Train(const torch::Tensor& x) {
     optimizer->zero_grad();
@@ -105,12 +120,8 @@ struct Model {
     archive.write(prefix + "target", t);
     archive.write(prefix + "predictor", p);
     archive.write(prefix + "optimizer", o);
-    archive.write(prefix + "obs_mean", obs.mean);
-    archive.write(prefix + "obs_var", obs.var);
-    archive.write(prefix + "obs_count", torch::tensor(obs.count, torch::kFloat64));
-    archive.write(prefix + "ret_mean", ret.mean);
-    archive.write(prefix + "ret_var", ret.var);
-    archive.write(prefix + "ret_count", torch::tensor(ret.count, torch::kFloat64));
+    archive.write(prefix + "obs_moments", obs.ToTensor());
+    archive.write(prefix + "ret_moments", ret.ToTensor());
   }
 
   void Read(torch::serialize::InputArchive& archive, const std::string& prefix) {
@@ -121,22 +132,18 @@ struct Model {
     target->load(t);
     predictor->load(p);
     optimizer->load(o);
-    torch::Tensor count;
-    archive.read(prefix + "obs_mean", obs.mean);
-    archive.read(prefix + "obs_var", obs.var);
-    archive.read(prefix + "obs_count", count);
-    obs.count = count.item<double>();
-    archive.read(prefix + "ret_mean", ret.mean);
-    archive.read(prefix + "ret_var", ret.var);
-    archive.read(prefix + "ret_count", count);
-    ret.count = count.item<double>();
+    torch::Tensor moments;
+    archive.read(prefix + "obs_moments", moments);
+    obs = ReadMoments(moments, obs.dim(), prefix + "obs_moments");
+    archive.read(prefix + "ret_moments", moments);
+    ret = ReadMoments(moments, 1, prefix + "ret_moments");
   }
 
-  Mlp target;
-  Mlp predictor;
+  nn::Mlp target;
+  nn::Mlp predictor;
   std::unique_ptr<torch::optim::Adam> optimizer;
-  RunningMoments obs;
-  RunningMoments ret;
+  nn::RunningMoments obs;
+  nn::RunningMoments ret;
   bool normalize;
 };
 
@@ -167,9 +174,9 @@ struct RndNovelty::Impl {
                          CreditName(config.credit), " permutation=", PermutationName(config.permutation))),
         rng(config.seed) {
     if (config.credit == Credit::kIndependent) {
-      local.emplace(encoder.local_dim(config.permutation == Permutation::kOff), rnd);
+      local.emplace(encoder.local_dim(config.permutation == Permutation::kOff), rnd, config.seed);
     } else if (config.credit != Credit::kNone) {
-      joint.emplace(encoder.joint_dim(), rnd);
+      joint.emplace(encoder.joint_dim(), rnd, config.seed);
     }
   }
 
@@ -308,7 +315,6 @@ absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenar
   }
   if (!(rnd.gamma >= 0 && rnd.gamma < 1)) return absl::InvalidArgumentError("rnd gamma must be in [0, 1)");
   torch::set_num_threads(std::max(1, rnd.threads));
-  torch::manual_seed(config.seed);
   return std::unique_ptr<RndNovelty>(new RndNovelty(std::make_unique<Impl>(scenario, config, rnd)));
 }
 
@@ -341,16 +347,16 @@ void RndNovelty::FillStats(v1::RewardStats* stats) const {
 
 absl::Status RndNovelty::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
-  return SaveModels(path, impl_->tag, impl_->joint, impl_->local, "updates", impl_->updates);
+  return nn::SaveModels(path, impl_->tag, impl_->joint, impl_->local, "updates", impl_->updates);
 }
 
 absl::Status RndNovelty::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
-  return LoadModels<Model>(
-      path, impl.tag, &impl.joint, &impl.local, [&] { return Model(impl.encoder.joint_dim(), impl.rnd); },
-      [&] { return Model(impl.encoder.local_dim(with_id), impl.rnd); }, "updates", &impl.updates);
+  return nn::LoadModels<Model>(
+      path, impl.tag, &impl.joint, &impl.local, [&] { return Model(impl.encoder.joint_dim(), impl.rnd, impl.config.seed); },
+      [&] { return Model(impl.encoder.local_dim(with_id), impl.rnd, impl.config.seed); }, "updates", &impl.updates);
 }
 
 absl::Status RndNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
@@ -362,7 +368,7 @@ absl::Status RndNovelty::SetLinearForTest(const std::string& net, int layer, con
   if (!model || (which != "target" && which != "predictor")) {
     return absl::InvalidArgumentError(absl::StrCat("no net '", net, "' in this credit mode"));
   }
-  return SetLinear(which == "target" ? model->target : model->predictor, layer, weight, bias);
+  return nn::SetLinear(which == "target" ? model->target : model->predictor, layer, weight, bias);
 }
 
 }  // namespace imca::reward

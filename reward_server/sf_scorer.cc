@@ -12,7 +12,8 @@
 #include "common/rng.h"
 #include "common/status_macros.h"
 #include "reward_server/joint_input.h"
-#include "reward_server/torch_mlp.h"
+#include "nn/archive.h"
+#include "nn/mlp.h"
 
 namespace imca::reward {
 namespace {
@@ -30,8 +31,11 @@ std::vector<int64_t> Sizes(int64_t in, const SfConfig& config) {
 
 // phi (fixed), psi (trained) and psi's target copy.
 struct SfModel {
-  SfModel(int64_t in, const SfConfig& config)
-      : phi(Sizes(in, config)), psi(Sizes(in, config)), psi_target(Sizes(in, config)) {
+  // phi and psi draw their initial weights from streams 1 and 2 of `seed`.
+  SfModel(int64_t in, const SfConfig& config, uint64_t seed)
+      : phi(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 1))),
+        psi(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 2))),
+        psi_target(nn::MlpOptions(Sizes(in, config))) {
     for (auto& p : phi->parameters()) p.set_requires_grad(false);
     for (auto& p : psi_target->parameters()) p.set_requires_grad(false);
     SyncTarget();
@@ -39,12 +43,7 @@ struct SfModel {
                                                      torch::optim::AdamOptions(config.learning_rate));
   }
 
-  void SyncTarget() {
-    torch::NoGradGuard no_grad;
-    auto from = psi->parameters();
-    auto to = psi_target->parameters();
-    for (size_t i = 0; i < from.size(); ++i) to[i].copy_(from[i]);
-  }
+  void SyncTarget() { nn::SoftUpdate(*psi_target, *psi, /*tau=*/1.0); }
 
   torch::Tensor Psi(const torch::Tensor& x) {
     torch::NoGradGuard no_grad;
@@ -88,9 +87,9 @@ struct SfModel {
     optimizer->load(o);
   }
 
-  Mlp phi;
-  Mlp psi;
-  Mlp psi_target;
+  nn::Mlp phi;
+  nn::Mlp psi;
+  nn::Mlp psi_target;
   std::unique_ptr<torch::optim::Adam> optimizer;
 };
 
@@ -120,9 +119,9 @@ struct SfNovelty::Impl {
                          " n=", n, " credit=", CreditName(config.credit),
                          " permutation=", PermutationName(config.permutation))) {
     if (config.credit == Credit::kIndependent) {
-      local.emplace(encoder.local_state_dim(config.permutation == Permutation::kOff), sf);
+      local.emplace(encoder.local_state_dim(config.permutation == Permutation::kOff), sf, config.seed);
     } else if (config.credit != Credit::kNone) {
-      joint.emplace(encoder.state_dim(), sf);
+      joint.emplace(encoder.state_dim(), sf, config.seed);
     }
   }
 
@@ -259,7 +258,6 @@ absl::StatusOr<std::unique_ptr<SfNovelty>> SfNovelty::Create(const env::Scenario
   if (!(sf.learning_rate > 0)) return absl::InvalidArgumentError("sf learning rate must be > 0");
   if (sf.target_update < 1) return absl::InvalidArgumentError("sf target update period must be >= 1");
   torch::set_num_threads(std::max(1, sf.threads));
-  torch::manual_seed(config.seed);
   return std::unique_ptr<SfNovelty>(new SfNovelty(std::make_unique<Impl>(scenario, config, sf)));
 }
 
@@ -294,16 +292,16 @@ void SfNovelty::FillStats(v1::RewardStats* stats) const {
 
 absl::Status SfNovelty::Save(const std::string& path) const {
   absl::MutexLock lock(&impl_->mu);
-  return SaveModels(path, impl_->tag, impl_->joint, impl_->local, "requests", impl_->requests);
+  return nn::SaveModels(path, impl_->tag, impl_->joint, impl_->local, "requests", impl_->requests);
 }
 
 absl::Status SfNovelty::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
-  return LoadModels<SfModel>(
-      path, impl.tag, &impl.joint, &impl.local, [&] { return SfModel(impl.encoder.state_dim(), impl.sf); },
-      [&] { return SfModel(impl.encoder.local_state_dim(with_id), impl.sf); }, "requests", &impl.requests);
+  return nn::LoadModels<SfModel>(
+      path, impl.tag, &impl.joint, &impl.local, [&] { return SfModel(impl.encoder.state_dim(), impl.sf, impl.config.seed); },
+      [&] { return SfModel(impl.encoder.local_state_dim(with_id), impl.sf, impl.config.seed); }, "requests", &impl.requests);
 }
 
 absl::Status SfNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
@@ -315,7 +313,7 @@ absl::Status SfNovelty::SetLinearForTest(const std::string& net, int layer, cons
   if (!model || (which != "phi" && which != "psi")) {
     return absl::InvalidArgumentError(absl::StrCat("no net '", net, "' in this credit mode"));
   }
-  IMCA_RETURN_IF_ERROR(SetLinear(which == "phi" ? model->phi : model->psi, layer, weight, bias));
+  IMCA_RETURN_IF_ERROR(nn::SetLinear(which == "phi" ? model->phi : model->psi, layer, weight, bias));
   model->SyncTarget();
   return absl::OkStatus();
 }

@@ -1,11 +1,9 @@
-#include "reward_server/torch_mlp.h"
-
-#include <cstdio>
+#include "nn/archive.h"
 
 #include "absl/strings/str_cat.h"
 #include "common/atomic_file.h"
 
-namespace imca::reward {
+namespace imca::nn {
 
 absl::Status SaveArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::OutputArchive&)>& fill) {
@@ -45,20 +43,4 @@ absl::Status LoadArchive(const std::string& path, const std::string& tag,
   return absl::OkStatus();
 }
 
-absl::Status SetLinear(Mlp& mlp, int layer, const std::vector<float>& weight, const std::vector<float>& bias) {
-  if (layer < 0 || layer >= static_cast<int>(mlp->layers().size())) {
-    return absl::InvalidArgumentError(absl::StrCat("no layer ", layer));
-  }
-  torch::nn::Linear& linear = mlp->layers()[layer];
-  if (static_cast<int64_t>(weight.size()) != linear->weight.numel() ||
-      static_cast<int64_t>(bias.size()) != linear->bias.numel()) {
-    return absl::InvalidArgumentError(absl::StrCat("layer ", layer, " is ", linear->weight.size(0), "x",
-                                                   linear->weight.size(1)));
-  }
-  torch::NoGradGuard no_grad;
-  linear->weight.copy_(torch::tensor(weight).reshape(linear->weight.sizes()));
-  linear->bias.copy_(torch::tensor(bias));
-  return absl::OkStatus();
-}
-
-}  // namespace imca::reward
+}  // namespace imca::nn
