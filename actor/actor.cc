@@ -95,9 +95,10 @@ bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
 
 bool Actor::Adopt(const v1::Policy& policy) {
   absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
-  if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() || mlp->num_actions() != scenario_->num_actions()) {
+  if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() || mlp->num_actions() != scenario_->num_actions() ||
+      (mlp->agent_networks() != 0 && mlp->agent_networks() != scenario_->num_agents())) {
     policy_error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ",
-                                                     mlp.ok() ? "observation or action size differs"
+                                                     mlp.ok() ? "observation, action or agent count differs"
                                                               : mlp.status().message()));
     return false;
   }

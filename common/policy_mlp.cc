@@ -13,19 +13,15 @@ constexpr float kLayerNormEps = 1e-5f;  // LibTorch's default, which the learner
 
 }  // namespace
 
-absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
-  const bool layer_norm = policy.architecture() == "mlp_tanh_layernorm";
-  if (policy.architecture() != "mlp_tanh" && !layer_norm) {
-    return absl::InvalidArgumentError(absl::StrCat("policy.architecture '", policy.architecture(),
-                                                   "' is not mlp_tanh or mlp_tanh_layernorm"));
-  }
+absl::StatusOr<PolicyMlp::Net> PolicyMlp::ReadNet(const v1::Policy& policy, const std::string& prefix,
+                                                  bool layer_norm) {
   std::map<std::string, const v1::NamedTensor*> by_name;
   for (const v1::NamedTensor& t : policy.tensors()) by_name[t.name()] = &t;
-  // A LayerNorm "<prefix>.weight" / "<prefix>.bias" of `size` elements.
-  const auto read_norm = [&](const std::string& prefix, int64_t size) -> absl::StatusOr<LayerNorm> {
+  // A LayerNorm "<name>.weight" / "<name>.bias" of `size` elements.
+  const auto read_norm = [&](const std::string& norm_name, int64_t size) -> absl::StatusOr<LayerNorm> {
     LayerNorm norm;
     for (const char* part : {"weight", "bias"}) {
-      const std::string name = absl::StrCat(prefix, ".", part);
+      const std::string name = absl::StrCat(norm_name, ".", part);
       auto it = by_name.find(name);
       if (it == by_name.end()) return absl::InvalidArgumentError(absl::StrCat("policy lacks ", name));
       const v1::NamedTensor& t = *it->second;
@@ -36,23 +32,19 @@ absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
     }
     return norm;
   };
-  PolicyMlp mlp;
-  mlp.version_ = policy.version();
-  mlp.obs_dim_ = policy.obs_dim();
-  mlp.num_actions_ = policy.num_actions();
-  if (policy.obs_dim() < 1) return absl::InvalidArgumentError("policy.obs_dim must be >= 1");
+  Net net;
   if (layer_norm) {
-    absl::StatusOr<LayerNorm> norm = read_norm("policy.input_norm", policy.obs_dim());
+    absl::StatusOr<LayerNorm> norm = read_norm(prefix + "input_norm", policy.obs_dim());
     if (!norm.ok()) return norm.status();
-    mlp.input_norm_ = *std::move(norm);
+    net.input_norm = *std::move(norm);
   }
   int64_t in = policy.obs_dim();
   for (int layer = 0;; ++layer) {
-    const std::string w_name = absl::StrCat("policy.", layer, ".weight");
-    const std::string b_name = absl::StrCat("policy.", layer, ".bias");
+    const std::string w_name = absl::StrCat(prefix, layer, ".weight");
+    const std::string b_name = absl::StrCat(prefix, layer, ".bias");
     auto w = by_name.find(w_name);
     if (w == by_name.end()) {
-      if (layer == 0) return absl::InvalidArgumentError("policy has no tensor policy.0.weight");
+      if (layer == 0) return absl::InvalidArgumentError(absl::StrCat("policy has no tensor ", w_name));
       break;
     }
     auto b = by_name.find(b_name);
@@ -66,22 +58,49 @@ absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
     if (bt.shape_size() != 1 || bt.shape(0) != wt.shape(0) || bt.data_size() != bt.shape(0)) {
       return absl::InvalidArgumentError(absl::StrCat(b_name, " has a bad shape or size"));
     }
-    mlp.weights_.push_back(Eigen::Map<const Matrix>(wt.data().data(), wt.shape(0), wt.shape(1)));
-    mlp.biases_.push_back(Eigen::Map<const Eigen::RowVectorXf>(bt.data().data(), bt.shape(0)));
+    net.weights.push_back(Eigen::Map<const Matrix>(wt.data().data(), wt.shape(0), wt.shape(1)));
+    net.biases.push_back(Eigen::Map<const Eigen::RowVectorXf>(bt.data().data(), bt.shape(0)));
     in = wt.shape(0);
-    // Every layer but the last is followed by tanh and, here, a LayerNorm;
-    // which layer is last shows only once the next weight is missing.
-    if (layer_norm && by_name.count(absl::StrCat("policy.", layer + 1, ".weight")) > 0) {
-      absl::StatusOr<LayerNorm> norm = read_norm(absl::StrCat("policy.", layer, ".norm"), in);
+    // Every layer but the last is followed by the activation and, here, a
+    // LayerNorm; which layer is last shows only once the next weight is missing.
+    if (layer_norm && by_name.count(absl::StrCat(prefix, layer + 1, ".weight")) > 0) {
+      absl::StatusOr<LayerNorm> norm = read_norm(absl::StrCat(prefix, layer, ".norm"), in);
       if (!norm.ok()) return norm.status();
-      mlp.hidden_norms_.push_back(*std::move(norm));
+      net.hidden_norms.push_back(*std::move(norm));
     }
   }
   if (in != policy.num_actions()) {
     return absl::InvalidArgumentError(
-        absl::StrCat("policy output size ", in, " != num_actions ", policy.num_actions()));
+        absl::StrCat(prefix, " output size ", in, " != num_actions ", policy.num_actions()));
   }
-  mlp.scratch_.resize(mlp.weights_.size());
+  net.scratch.resize(net.weights.size());
+  return net;
+}
+
+absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
+  const std::string& arch = policy.architecture();
+  const bool layer_norm = arch == "mlp_tanh_layernorm";
+  if (arch != "mlp_tanh" && arch != "mlp_relu" && !layer_norm) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("policy.architecture '", arch, "' is not mlp_tanh, mlp_tanh_layernorm or mlp_relu"));
+  }
+  if (policy.obs_dim() < 1) return absl::InvalidArgumentError("policy.obs_dim must be >= 1");
+  if (policy.agent_networks() < 0 || policy.agent_networks() > 1024) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("policy.agent_networks is ", policy.agent_networks(), ", expected 0 (shared) or 1..1024"));
+  }
+  PolicyMlp mlp;
+  mlp.version_ = policy.version();
+  mlp.obs_dim_ = policy.obs_dim();
+  mlp.num_actions_ = policy.num_actions();
+  mlp.agent_networks_ = policy.agent_networks();
+  mlp.relu_ = arch == "mlp_relu";
+  for (int k = 0; k < std::max(1, mlp.agent_networks_); ++k) {
+    absl::StatusOr<Net> net =
+        ReadNet(policy, mlp.agent_networks_ == 0 ? "policy." : absl::StrCat("agent", k, ".policy."), layer_norm);
+    if (!net.ok()) return net.status();
+    mlp.nets_.push_back(*std::move(net));
+  }
   return mlp;
 }
 
@@ -96,37 +115,58 @@ void PolicyMlp::ApplyLayerNorm(const LayerNorm& norm, Eigen::Ref<Matrix> x) {
   }
 }
 
-void PolicyMlp::Probabilities(const float* obs, int batch, float* probs) {
-  Eigen::Map<const Matrix> raw(obs, batch, obs_dim_);
-  const size_t layers = weights_.size();
+void PolicyMlp::Forward(Net& net, Eigen::Ref<const Matrix> raw, int batch) const {
+  const size_t layers = net.weights.size();
   // Scratch only grows, so alternating batch sizes allocate nothing.
-  if (input_norm_.has_value()) {
-    if (normed_input_.rows() < batch) normed_input_.resize(batch, obs_dim_);
-    normed_input_.topRows(batch) = raw;
-    ApplyLayerNorm(*input_norm_, normed_input_.topRows(batch));
+  if (net.input_norm.has_value()) {
+    if (net.normed_input.rows() < batch) net.normed_input.resize(batch, obs_dim_);
+    net.normed_input.topRows(batch) = raw;
+    ApplyLayerNorm(*net.input_norm, net.normed_input.topRows(batch));
   }
   for (size_t i = 0; i < layers; ++i) {
-    if (scratch_[i].rows() < batch) scratch_[i].resize(batch, weights_[i].rows());
-    auto out = scratch_[i].topRows(batch);
+    if (net.scratch[i].rows() < batch) net.scratch[i].resize(batch, net.weights[i].rows());
+    auto out = net.scratch[i].topRows(batch);
     if (i > 0) {
-      out.noalias() = scratch_[i - 1].topRows(batch) * weights_[i].transpose();
-    } else if (input_norm_.has_value()) {
-      out.noalias() = normed_input_.topRows(batch) * weights_[i].transpose();
+      out.noalias() = net.scratch[i - 1].topRows(batch) * net.weights[i].transpose();
+    } else if (net.input_norm.has_value()) {
+      out.noalias() = net.normed_input.topRows(batch) * net.weights[i].transpose();
     } else {
-      out.noalias() = raw * weights_[i].transpose();
+      out.noalias() = raw * net.weights[i].transpose();
     }
-    out.rowwise() += biases_[i];
+    out.rowwise() += net.biases[i];
     if (i + 1 < layers) {
-      out = out.array().tanh();
-      if (!hidden_norms_.empty()) ApplyLayerNorm(hidden_norms_[i], out);
+      if (relu_) {
+        out = out.array().max(0.0f);
+      } else {
+        out = out.array().tanh();
+      }
+      if (!net.hidden_norms.empty()) ApplyLayerNorm(net.hidden_norms[i], out);
     }
   }
-  const auto logits = scratch_[layers - 1].topRows(batch);
+}
+
+void PolicyMlp::Probabilities(const float* obs, int batch, float* probs) {
+  Eigen::Map<const Matrix> raw(obs, batch, obs_dim_);
   Eigen::Map<Matrix> p(probs, batch, num_actions_);
-  for (int r = 0; r < batch; ++r) {
-    const float max = logits.row(r).maxCoeff();
-    p.row(r) = (logits.row(r).array() - max).exp();
-    p.row(r) /= p.row(r).sum();
+  const auto softmax_rows = [&](const auto& logits, const auto& row_of) {
+    for (int r = 0; r < logits.rows(); ++r) {
+      const float max = logits.row(r).maxCoeff();
+      auto out = p.row(row_of(r));
+      out = (logits.row(r).array() - max).exp();
+      out /= out.sum();
+    }
+  };
+  if (agent_networks_ == 0) {
+    Forward(nets_[0], raw, batch);
+    softmax_rows(nets_[0].scratch.back().topRows(batch), [](int r) { return r; });
+    return;
+  }
+  const int k = agent_networks_, rows = batch / k;
+  if (gathered_.rows() < rows) gathered_.resize(rows, obs_dim_);
+  for (int a = 0; a < k; ++a) {
+    for (int r = 0; r < rows; ++r) gathered_.row(r) = raw.row(r * k + a);
+    Forward(nets_[a], gathered_.topRows(rows), rows);
+    softmax_rows(nets_[a].scratch.back().topRows(rows), [&](int r) { return r * k + a; });
   }
 }
 

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -12,8 +13,9 @@
 
 namespace imca {
 
-// Evaluates a published "mlp_tanh" or "mlp_tanh_layernorm" Policy (see
-// learner_service.proto) with Eigen, so actors need no LibTorch. Not thread-safe (scratch buffers are
+// Evaluates a published "mlp_tanh", "mlp_tanh_layernorm" or "mlp_relu"
+// Policy, shared or one network per agent (see learner_service.proto), with
+// Eigen, so actors need no LibTorch. Not thread-safe (scratch buffers are
 // reused between calls to avoid allocation); copy it per thread.
 class PolicyMlp {
  public:
@@ -26,9 +28,13 @@ class PolicyMlp {
   int64_t version() const { return version_; }
   int obs_dim() const { return obs_dim_; }
   int num_actions() const { return num_actions_; }
+  // 0: shared; else the number of per-agent networks.
+  int agent_networks() const { return agent_networks_; }
 
   // obs: [batch][obs_dim] row-major; writes softmax probabilities
-  // [batch][num_actions] into probs.
+  // [batch][num_actions] into probs. With per-agent networks, row r is agent
+  // (r mod agent_networks)'s observation ([env][agent] rows), so batch must
+  // be a multiple of agent_networks.
   void Probabilities(const float* obs, int batch, float* probs);
 
  private:
@@ -38,17 +44,27 @@ class PolicyMlp {
     Eigen::RowVectorXf shift;
   };
   static void ApplyLayerNorm(const LayerNorm& norm, Eigen::Ref<Matrix> x);
+  // One network: tensors "<prefix><i>.weight" etc.
+  struct Net {
+    std::vector<Matrix> weights;  // [out, in]
+    std::vector<Eigen::RowVectorXf> biases;
+    // "mlp_tanh_layernorm" only: on the input, and after each hidden tanh.
+    std::optional<LayerNorm> input_norm;
+    std::vector<LayerNorm> hidden_norms;  // Empty or one per hidden layer.
+    Matrix normed_input;
+    std::vector<Matrix> scratch;
+  };
+  static absl::StatusOr<Net> ReadNet(const v1::Policy& policy, const std::string& prefix, bool layer_norm);
+  // Logits of `rows` observations into net.scratch.back().
+  void Forward(Net& net, Eigen::Ref<const Matrix> x, int rows) const;
 
   int64_t version_ = 0;
   int obs_dim_ = 0;
   int num_actions_ = 0;
-  std::vector<Matrix> weights_;  // [out, in]
-  std::vector<Eigen::RowVectorXf> biases_;
-  // "mlp_tanh_layernorm" only: on the input, and after each hidden tanh.
-  std::optional<LayerNorm> input_norm_;
-  std::vector<LayerNorm> hidden_norms_; // Empty or one per hidden layer.
-  Matrix normed_input_;
-  std::vector<Matrix> scratch_;
+  int agent_networks_ = 0;
+  bool relu_ = false;
+  std::vector<Net> nets_;  // One, or one per agent.
+  Matrix gathered_;  // One agent's rows (agent_networks > 0).
 };
 
 // Index drawn from the categorical distribution probs[0..count) given a

@@ -65,6 +65,47 @@ TEST(PolicyMlpTest, LayerNormArchitectureMatchesHandComputation) {
   EXPECT_EQ(PolicyMlp::FromProto(policy).status().code(), absl::StatusCode::kInvalidArgument);
 }
 
+TEST(PolicyMlpTest, ReluArchitectureClampsHiddenUnitsAtZero) {
+  v1::Policy policy = TwoLayer();
+  policy.set_architecture("mlp_relu");
+  auto mlp = PolicyMlp::FromProto(policy);
+  ASSERT_TRUE(mlp.ok()) << mlp.status();
+  // h = relu(-1, 2 * 0.5) = (0, 1); logits = (0, 2).
+  const float obs[2] = {-1.0f, 0.5f};
+  float probs[2];
+  mlp->Probabilities(obs, 1, probs);
+  EXPECT_NEAR(probs[0], 1.0 / (1.0 + std::exp(2.0)), 1e-6);
+}
+
+TEST(PolicyMlpTest, PerAgentNetworksActOnTheirAgentsRows) {
+  // Agent 0's network prefers action 1 by a logit of 3, agent 1's action 0 by 2.
+  v1::Policy policy;
+  policy.set_architecture("mlp_relu");
+  policy.set_obs_dim(1);
+  policy.set_num_actions(2);
+  policy.set_agent_networks(2);
+  AddTensor(&policy, "agent0.policy.0.weight", {2, 1}, {0, 0});
+  AddTensor(&policy, "agent0.policy.0.bias", {2}, {0, 3});
+  AddTensor(&policy, "agent1.policy.0.weight", {2, 1}, {0, 0});
+  AddTensor(&policy, "agent1.policy.0.bias", {2}, {2, 0});
+  auto mlp = PolicyMlp::FromProto(policy);
+  ASSERT_TRUE(mlp.ok()) << mlp.status();
+  EXPECT_EQ(mlp->agent_networks(), 2);
+  // Rows [env][agent]: two envs of two agents.
+  const float obs[4] = {0, 0, 0, 0};
+  float probs[8];
+  mlp->Probabilities(obs, 4, probs);
+  const double p3 = 1.0 / (1.0 + std::exp(-3.0)), p2 = 1.0 / (1.0 + std::exp(-2.0));
+  for (int e = 0; e < 2; ++e) {
+    EXPECT_NEAR(probs[(e * 2 + 0) * 2 + 1], p3, 1e-6) << e;
+    EXPECT_NEAR(probs[(e * 2 + 1) * 2 + 0], p2, 1e-6) << e;
+  }
+  policy.mutable_tensors()->RemoveLast();
+  EXPECT_FALSE(PolicyMlp::FromProto(policy).ok());  // agent1.policy.0.bias missing.
+  policy.set_agent_networks(-1);
+  EXPECT_FALSE(PolicyMlp::FromProto(policy).ok());
+}
+
 TEST(PolicyMlpTest, RejectsBrokenPolicies) {
   v1::Policy policy = TwoLayer();
   policy.set_architecture("transformer");

@@ -14,9 +14,10 @@
 #include "common/atomic_file.h"
 #include "common/enum_names.h"
 #include "common/status_macros.h"
-#include "learner/lap.h"
 #include "common/unroll_check.h"
-#include "learner/gae.h"
+#include "learner/algorithms/maddpg.h"
+#include "learner/algorithms/mappo.h"
+#include "learner/lap.h"
 
 namespace imca::learner {
 namespace {
@@ -28,7 +29,7 @@ constexpr char kMetricsHeader[] =
     "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
     "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,"
     "ms_wait,ms_featurise,ms_values,ms_gae,ms_copy,ms_prepare,ms_forward,ms_backward,ms_optimizer,ms_publish,"
-    "global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward";
+    "global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward,updates,replay_size";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -75,6 +76,21 @@ constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "st
                                                        {CriticInput::kJointObs, "joint_obs"}};
 constexpr EnumName<TimeLimit> kTimeLimitNames[] = {{TimeLimit::kBootstrap, "bootstrap"},
                                                    {TimeLimit::kTerminal, "terminal"}};
+constexpr EnumName<Algo> kAlgoNames[] = {{Algo::kMappo, "mappo"}, {Algo::kMaddpg, "maddpg"}};
+
+absl::StatusOr<std::unique_ptr<Algorithm>> MakeAlgorithm(const env::Scenario* scenario, const LearnerConfig& config) {
+  switch (config.algo) {
+    case Algo::kMappo: {
+      IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Mappo> mappo, Mappo::Create(scenario, config));
+      return std::unique_ptr<Algorithm>(std::move(mappo));
+    }
+    case Algo::kMaddpg: {
+      IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Maddpg> maddpg, Maddpg::Create(scenario, config));
+      return std::unique_ptr<Algorithm>(std::move(maddpg));
+    }
+  }
+  return absl::InvalidArgumentError("unknown algo");
+}
 
 }  // namespace
 
@@ -82,30 +98,17 @@ std::string CriticInputName(CriticInput input) { return NameOf(input, kCriticInp
 absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name) { return ParseName(name, kCriticInputNames); }
 std::string TimeLimitName(TimeLimit limit) { return NameOf(limit, kTimeLimitNames); }
 absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name) { return ParseName(name, kTimeLimitNames); }
+std::string AlgoName(Algo algo) { return NameOf(algo, kAlgoNames); }
+absl::StatusOr<Algo> ParseAlgo(const std::string& name) { return ParseName(name, kAlgoNames); }
 
 absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
                                                          const LearnerConfig& config) {
   if (config.batch_steps < 1) return absl::InvalidArgumentError("batch_steps must be >= 1");
   if (config.max_policy_lag < 0) return absl::InvalidArgumentError("max_policy_lag must be >= 0");
   if (config.queue_capacity < 1) return absl::InvalidArgumentError("queue_capacity must be >= 1");
-  if (config.edti != (config.ppo.value_heads == 3)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "value_heads is ", config.ppo.value_heads,
-        config.edti ? ": edti needs 3 (extrinsic, intrinsic, interaction)" : ": 3 heads are for edti only"));
-  }
-  if (!(config.gamma > 0 && config.gamma <= 1) || !(config.gamma_int > 0 && config.gamma_int <= 1) ||
-      !(config.lambda >= 0 && config.lambda <= 1)) {
-    return absl::InvalidArgumentError("gamma, gamma_int must be in (0,1] and lambda in [0,1]");
-  }
-  const env::Featurizer featurizer(*scenario);
-  const int n = scenario->num_agents();
-  const int critic_dim = (config.critic_input == CriticInput::kJointObs ? n * featurizer.obs_dim()
-                                                                         : featurizer.global_dim()) +
-                         n;
-  IMCA_ASSIGN_OR_RETURN(std::unique_ptr<PpoTrainer> trainer,
-                        PpoTrainer::Create(config.ppo, featurizer.obs_dim(), critic_dim,
-                                           scenario->num_actions()));
-  auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(trainer)));
+  if (config.edti && config.algo != Algo::kMappo) return absl::InvalidArgumentError("edti is MAPPO's (algo mappo)");
+  IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Algorithm> algorithm, MakeAlgorithm(scenario, config));
+  auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(algorithm)));
   if (config.max_batch_bytes < 1) return absl::InvalidArgumentError("max_batch_bytes must be >= 1");
   if (const int64_t bytes = learner->IterationBytes(config.batch_steps); bytes > config.max_batch_bytes) {
     return absl::InvalidArgumentError(absl::StrFormat(
@@ -124,19 +127,10 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
   return learner;
 }
 
-Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config,
-                 std::unique_ptr<PpoTrainer> trainer)
-    : scenario_(scenario), config_(config), featurizer_(*scenario), trainer_(std::move(trainer)) {}
+Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm)
+    : scenario_(scenario), config_(config), algorithm_(std::move(algorithm)) {}
 
-int Learner::critic_dim() const { return trainer_->critic_dim(); }
-
-int64_t Learner::IterationBytes(int64_t steps) const {
-  const int64_t per_step = int64_t{scenario_->num_agents()} * (featurizer_.obs_dim() + critic_dim());
-  const int64_t bytes_per_step = 4 * per_step * static_cast<int64_t>(sizeof(float));
-  // Saturates instead of overflowing for absurd step counts.
-  if (steps > std::numeric_limits<int64_t>::max() / bytes_per_step) return std::numeric_limits<int64_t>::max();
-  return steps * bytes_per_step;
-}
+int64_t Learner::IterationBytes(int64_t steps) const { return algorithm_->IterationBytes(steps); }
 
 absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
   absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true, config_.edti});
@@ -164,7 +158,7 @@ absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cance
   }
   // Featurised here, on the pushing (gRPC) thread, so that the training
   // thread only computes values and GAE and trains.
-  QueuedUnroll queued = Featurise(std::move(unroll));
+  QueuedUnroll queued = algorithm_->Featurise(std::move(unroll));
   absl::MutexLock lock(&mu_);
   ++pushers_waiting_;
   const absl::Condition room(
@@ -264,28 +258,6 @@ absl::Status Learner::Admit(const v1::Unroll& unroll) {
   return absl::OkStatus();
 }
 
-Learner::QueuedUnroll Learner::Featurise(v1::Unroll unroll) const {
-  const int n = scenario_->num_agents(), k = scenario_->state_size();
-  const int obs_dim = featurizer_.obs_dim(), critic_dim = this->critic_dim();
-  const int64_t T = unroll.length(), E = unroll.num_envs();
-  Clock::time_point lap = Clock::now();
-  QueuedUnroll q;
-  q.obs.resize(T * E * n * obs_dim);
-  q.critic_inputs.resize((T + 1) * E * n * critic_dim);
-  for (int64_t row = 0; row < (T + 1) * E; ++row) {
-    const int32_t* state = unroll.states().data() + row * k;
-    float* obs = nullptr;  // The bootstrap states (row >= T * E) are not acted on.
-    if (row < T * E) {
-      obs = &q.obs[row * n * obs_dim];
-      for (int a = 0; a < n; ++a) featurizer_.Observe(state, a, obs + a * obs_dim);
-    }
-    CriticInputsOf(state, obs, &q.critic_inputs[row * n * critic_dim]);
-  }
-  q.unroll = std::move(unroll);
-  q.featurise_seconds = Lap(lap);
-  return q;
-}
-
 absl::Status Learner::StoppedStatus() const {
   return done_ ? absl::OutOfRangeError("budget done: the learner has trained its --steps")
                : absl::UnavailableError("learner is stopping");
@@ -380,10 +352,6 @@ absl::Status Learner::Run() {
     // Each unroll's values and advantages are computed as it arrives, while
     // the actors still produce the rest of the batch.
     phases_ = Phases();
-    voi_sum_ = 0;
-    voi_count_ = 0;
-    batch_.Clear();
-    PpoBatch& batch = batch_;
     std::vector<v1::Unroll> unrolls;
     int64_t steps = 0;
     Clock::time_point lap = Clock::now();
@@ -391,13 +359,14 @@ absl::Status Learner::Run() {
       std::optional<QueuedUnroll> queued = NextUnroll();
       phases_.wait += Lap(lap);
       if (!queued.has_value()) break;  // Stopping.
-      IMCA_RETURN_IF_ERROR(AppendToBatch(*queued, &batch));
+      phases_.featurise += queued->featurise_seconds;
+      IMCA_RETURN_IF_ERROR(algorithm_->Add(*queued));
       lap = Clock::now();
       steps += Steps(queued->unroll);
       unrolls.push_back(std::move(queued->unroll));
     }
     if (steps < config_.batch_steps) break;
-    IMCA_RETURN_IF_ERROR(TrainOn(unrolls, batch));
+    IMCA_RETURN_IF_ERROR(TrainOn(unrolls));
     if ((config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) ||
         (config_.checkpoint_seconds > 0 &&
          Clock::now() - last_checkpoint_ >= std::chrono::duration<double>(config_.checkpoint_seconds))) {
@@ -412,136 +381,18 @@ absl::Status Learner::Run() {
   return SaveCheckpoint();
 }
 
-void Learner::CriticInputsOf(const int32_t* state, const float* obs, float* out) const {
-  const int n = scenario_->num_agents(), obs_dim = featurizer_.obs_dim(), critic_dim = this->critic_dim();
-  const int features = critic_dim - n;  // The part every agent shares; then the agent id.
-  if (config_.critic_input == CriticInput::kState) {
-    featurizer_.GlobalState(state, out);
-  } else if (obs != nullptr) {
-    std::copy(obs, obs + n * obs_dim, out);
-  } else {
-    for (int a = 0; a < n; ++a) featurizer_.Observe(state, a, out + a * obs_dim);
-  }
-  for (int a = 0; a < n; ++a) {
-    float* row = out + a * critic_dim;
-    if (a > 0) std::copy(out, out + features, row);
-    std::fill(row + features, row + critic_dim, 0.0f);
-    row[features + a] = 1.0f;
-  }
-}
-
-absl::Status Learner::AppendToBatch(const QueuedUnroll& q, PpoBatch* batch) {
-  const int n = scenario_->num_agents();
-  const int k = scenario_->state_size();
-  const int obs_dim = featurizer_.obs_dim();
-  const int critic_dim = this->critic_dim();
-  const bool one_head = config_.ppo.value_heads == 1;
-  const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
-  if (batch->size == 0) {  // Room for the whole batch (the last unroll may overshoot).
-    batch->obs.reserve(config_.batch_steps * n * obs_dim);
-    batch->critic_inputs.reserve(config_.batch_steps * n * critic_dim);
-  }
-  Clock::time_point lap = Clock::now();
-  const v1::Unroll& u = q.unroll;
-  const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
-  phases_.featurise += q.featurise_seconds;
-  // Critic inputs of states [T+1][E][n], featurised by Push.
-  const std::vector<float>& inputs = q.critic_inputs;
-  const bool edti = config_.edti;
-  std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
-  std::vector<float> v_voi(edti ? (T + 1) * M : 0), f_voi(edti ? B : 0);
-  IMCA_RETURN_IF_ERROR(
-      trainer_->Values(inputs.data(), (T + 1) * M, v_ext.data(), v_int.data(), edti ? v_voi.data() : nullptr));
-  // GAE reads final values only at truncated steps: evaluate just those
-  // reached states (a few per unroll, not all T*E of them).
-  std::vector<int64_t> truncated_rows;
-  for (int64_t row = 0; row < T * E; ++row) {
-    if (u.truncated(row) && !u.terminated(row) && !limit_terminal) truncated_rows.push_back(row);
-  }
-  if (!truncated_rows.empty()) {
-    const int64_t rows = static_cast<int64_t>(truncated_rows.size()) * n;
-    std::vector<float> final_inputs(rows * critic_dim), final_ext(rows), final_int(rows), final_voi(rows);
-    for (size_t i = 0; i < truncated_rows.size(); ++i) {
-      CriticInputsOf(u.next_states().data() + truncated_rows[i] * k, nullptr, &final_inputs[i * n * critic_dim]);
-    }
-    IMCA_RETURN_IF_ERROR(trainer_->Values(final_inputs.data(), rows, final_ext.data(), final_int.data(),
-                                          edti ? final_voi.data() : nullptr));
-    for (size_t i = 0; i < truncated_rows.size(); ++i) {
-      for (int a = 0; a < n; ++a) {
-        f_ext[truncated_rows[i] * n + a] = final_ext[i * n + a];
-        f_int[truncated_rows[i] * n + a] = final_int[i * n + a];
-        if (edti) f_voi[truncated_rows[i] * n + a] = final_voi[i * n + a];
-      }
-    }
-  }
-  phases_.values += Lap(lap);
-  std::unique_ptr<bool[]> terminated(new bool[B]), truncated(new bool[B]);
-  for (int64_t row = 0; row < T * E; ++row) {
-    for (int a = 0; a < n; ++a) {
-      // kTerminal: the step limit cuts the return like termination.
-      terminated[row * n + a] = u.terminated(row) || (limit_terminal && u.truncated(row));
-      truncated[row * n + a] = u.truncated(row) && !limit_terminal;
-    }
-  }
-  std::vector<float> adv_ext(B), ret_ext(B), adv_int(B, 0.0f), ret_int(B, 0.0f);
-  if (one_head) {
-    // One value of r_ext + c_int * r_int, discounted with gamma.
-    std::vector<float> rewards(B);
-    for (int64_t i = 0; i < B; ++i) {
-      rewards[i] = u.rewards(i) + static_cast<float>(config_.intrinsic_coef) * u.intrinsic_rewards(i);
-    }
-    ComputeGae(T, M, rewards.data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
-               config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
-  } else {
-    ComputeGae(T, M, u.rewards().data(), v_ext.data(), f_ext.data(), terminated.get(), truncated.get(),
-               config_.gamma, config_.lambda, adv_ext.data(), ret_ext.data());
-    ComputeGae(T, M, u.intrinsic_rewards().data(), v_int.data(), f_int.data(), terminated.get(),
-               truncated.get(), config_.gamma_int, config_.lambda, adv_int.data(), ret_int.data());
-  }
-  std::vector<float> adv_voi(edti ? B : 0), ret_voi(edti ? B : 0);
-  if (edti) {
-    // EDTI's value of interaction, from the values of the influenced agents
-    // at the next state (all heads, one GAE of its own with the third head).
-    std::vector<float> voi(B);
-    EdtiInteractionRewards(T, E, n, u.influences().data(), v_ext.data(), v_int.data(), u.rewards().data(),
-                           u.intrinsic_rewards().data(), static_cast<float>(config_.gamma),
-                           config_.edti_coefficients, voi.data());
-    ComputeGae(T, M, voi.data(), v_voi.data(), f_voi.data(), terminated.get(), truncated.get(), config_.gamma,
-               config_.lambda, adv_voi.data(), ret_voi.data());
-    for (int64_t i = 0; i < B; ++i) voi_sum_ += voi[i];
-    voi_count_ += B;
-  }
-  phases_.gae += Lap(lap);
-
-  batch->size += B;
-  batch->obs.insert(batch->obs.end(), q.obs.begin(), q.obs.end());
-  batch->critic_inputs.insert(batch->critic_inputs.end(), inputs.begin(), inputs.begin() + B * critic_dim);
-  batch->actions.insert(batch->actions.end(), u.actions().begin(), u.actions().end());
-  batch->behaviour_log_probs.insert(batch->behaviour_log_probs.end(), u.behaviour_log_probs().begin(),
-                                    u.behaviour_log_probs().end());
-  for (int64_t i = 0; i < B; ++i) {
-    batch->advantages.push_back(adv_ext[i] + static_cast<float>(config_.intrinsic_coef) * adv_int[i] +
-                                (edti ? adv_voi[i] : 0.0f));
-  }
-  batch->returns_ext.insert(batch->returns_ext.end(), ret_ext.begin(), ret_ext.end());
-  batch->returns_int.insert(batch->returns_int.end(), ret_int.begin(), ret_int.end());
-  batch->returns_voi.insert(batch->returns_voi.end(), ret_voi.begin(), ret_voi.end());
-  phases_.copy += Lap(lap);
-  return absl::OkStatus();
-}
-
-absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoBatch& batch) {
+absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   {
     absl::MutexLock lock(&mu_);
     training_since_ = std::chrono::steady_clock::now();
   }
-  absl::StatusOr<PpoStats> trained = trainer_->Train(batch);
+  absl::StatusOr<IterationStats> trained = algorithm_->Train();
   {
     absl::MutexLock lock(&mu_);
     training_since_.reset();
     last_progress_ = std::chrono::steady_clock::now();
   }
-  PpoStats stats;
+  IterationStats stats;
   if (trained.ok()) {
     stats = *std::move(trained);
     if (stats.minibatches_skipped > 0) {
@@ -573,7 +424,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoB
     steps += Steps(u);
     lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
   }
-  const CreditStats credit = MeasureCredit(unrolls, batch.size);
+  const CreditStats credit = MeasureCredit(unrolls, steps * scenario_->num_agents());
   {
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
@@ -651,10 +502,10 @@ void Learner::Publish() {
   last_progress_ = std::chrono::steady_clock::now();
   if (policy_ != nullptr) ++version_;
   version_steps_ = 0;
-  policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
+  policy_ = std::make_shared<const v1::Policy>(algorithm_->ExportPolicy(version_));
 }
 
-absl::Status Learner::WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit) {
+absl::Status Learner::WriteMetricsRow(const IterationStats& stats, double lag, const CreditStats& credit) {
   if (config_.run_dir.empty()) return absl::OkStatus();
   if (!metrics_.is_open()) {
     const fs::path path = fs::path(config_.run_dir) / "metrics.csv";
@@ -690,13 +541,13 @@ absl::Status Learner::WriteMetricsRow(const PpoStats& stats, double lag, const C
                               stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction,
                               stats.behaviour_kl);
   // Where this iteration's time went (docs/benchmarks.md, "Where the learner's time goes").
-  for (double seconds : {phases_.wait, phases_.featurise, phases_.values, phases_.gae, phases_.copy,
+  for (double seconds : {phases_.wait, phases_.featurise, stats.seconds_values, stats.seconds_gae, stats.seconds_copy,
                          stats.seconds_prepare, stats.seconds_forward, stats.seconds_backward,
                          stats.seconds_optimizer, phases_.publish}) {
     metrics_ << absl::StrFormat(",%.2f", 1e3 * seconds);
   }
-  metrics_ << absl::StrFormat(",%.6g,%.6g,%d,%d,%.6g", credit.global_reward, credit.contribution_abs, eval_episodes,
-                              train_episodes, voi_count_ > 0 ? voi_sum_ / voi_count_ : 0.0);
+  metrics_ << absl::StrFormat(",%.6g,%.6g,%d,%d,%.6g,%d,%d", credit.global_reward, credit.contribution_abs,
+                              eval_episodes, train_episodes, stats.voi_reward, stats.updates, stats.replay_size);
   for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
   metrics_ << "\n";
   metrics_.flush();
@@ -719,7 +570,7 @@ absl::Status Learner::SaveCheckpoint() {
   // The .pt first, then its .meta: the .meta is the marker that the
   // checkpoint is complete (NewestCheckpoint reads only checkpoints that
   // have one), and each file is written whole or not at all.
-  IMCA_RETURN_IF_ERROR(trainer_->Save((dir / (stem + ".pt")).string()));
+  IMCA_RETURN_IF_ERROR(algorithm_->Save((dir / (stem + ".pt")).string()));
   std::string meta = absl::StrCat("version ", s.policy_version(), "\nenv_steps ", s.env_steps(), "\nwall_seconds ",
                                   s.wall_seconds(), "\niteration ", iteration_, "\n");
   {
@@ -823,7 +674,7 @@ absl::Status Learner::RestoreFrom(const std::string& meta_path) {
   }
   fs::path pt = meta_path;
   pt.replace_extension(".pt");
-  IMCA_RETURN_IF_ERROR(trainer_->Load(pt.string()));
+  IMCA_RETURN_IF_ERROR(algorithm_->Load(pt.string()));
   iteration_ = iteration;
   wall_offset_ = wall;
   absl::MutexLock lock(&mu_);
@@ -831,7 +682,7 @@ absl::Status Learner::RestoreFrom(const std::string& meta_path) {
   env_steps_ = env_steps;
   trained_ = accepted;
   accepted_ = std::move(accepted);
-  policy_ = std::make_shared<const v1::Policy>(trainer_->ExportPolicy(version_));
+  policy_ = std::make_shared<const v1::Policy>(algorithm_->ExportPolicy(version_));
   return absl::OkStatus();
 }
 

@@ -22,77 +22,16 @@
 #include "common/featurizer.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
-#include "learner/gae.h"
-#include "learner/ppo_trainer.h"
+#include "learner/algorithms/interface.h"
+#include "learner/learner_config.h"
 
 namespace imca::learner {
 
-// What the centralised critic sees besides the agent-id one-hot.
-enum class CriticInput {
-  kState,     // The global state encoding (featurizer global_dim).
-  kJointObs,  // All agents' observations concatenated in agent order (n * obs_dim),
-              // on-policy's MAPPO "share_obs".
-};
-
-// How the step limit ends an episode for the learner.
-enum class TimeLimit {
-  kBootstrap,  // Truncation: the value of the state reached bootstraps the return.
-  kTerminal,   // As termination: no bootstrap (on-policy's MPE runner).
-};
-
-// "state" / "joint_obs", "bootstrap" / "terminal"; parsers return
-// INVALID_ARGUMENT naming the accepted values.
-std::string CriticInputName(CriticInput input);
-absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name);
-std::string TimeLimitName(TimeLimit limit);
-absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name);
-
-struct LearnerConfig {
-  PpoConfig ppo;
-  CriticInput critic_input = CriticInput::kState;
-  TimeLimit time_limit = TimeLimit::kBootstrap;
-  // Synchronous collection: an iteration trains only on unrolls acted with
-  // the policy it starts from (lag 0). Push refuses any other version, and
-  // once batch_steps of the current version are queued, further unrolls of
-  // it (both as "stale ..."). Actors should act a fixed number of unrolls
-  // per version and then wait for the next (actor --sync_unrolls).
-  bool synchronous = false;
-  // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
-  // value of interaction (EdtiInteractionRewards, learner/gae.h, from the
-  // unroll's influences and the critic's values of the influenced agents),
-  // learned by a third value head (ppo.value_heads must be 3). Push refuses
-  // unrolls without influences (INVALID_ARGUMENT naming unroll.influences).
-  bool edti = false;
-  EdtiCoefficients edti_coefficients;
-  double gamma = 0.99;            // Extrinsic discount.
-  double gamma_int = 0.99;        // Intrinsic discount.
-  double lambda = 0.95;           // GAE lambda (both heads).
-  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int.
-  int64_t batch_steps = 4096;     // Joint env steps (T*E summed over unrolls) per iteration.
-  int max_policy_lag = 4;         // Unrolls older than this many versions are dropped.
-  int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
-  int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
-  std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
-  // If set, a CSV row per trained unroll (iteration, actor_id, incarnation,
-  // sequence, policy_version); rows of iterations a restart rolled back are
-  // dropped.
-  std::string trained_log;
-  // A checkpoint is written every checkpoint_every iterations and whenever
-  // checkpoint_seconds have passed since the last one (0 turns either off),
-  // and at the end: a killed learner loses at most that much training.
-  int checkpoint_every = 50;
-  double checkpoint_seconds = 30;
-  int metrics_window = 200;       // Episodes in the success-rate / return windows.
-  // Cap on an iteration's feature arrays (policy and critic inputs, and the
-  // trainer's copy of them; see Learner::IterationBytes). Create() rejects a
-  // batch_steps over it and Push() an unroll that would push a batch over it,
-  // so a large map with large unrolls is an error, not an out-of-memory kill.
-  int64_t max_batch_bytes = int64_t{8192} * 1000 * 1000;  // --max_batch_mb 8192
-};
-
 // The learner's domain logic, independent of gRPC: a bounded queue of
-// validated unrolls, the MAPPO training loop, versioned policy publication,
-// metrics and checkpoints. Thread-safe: Push/CurrentPolicy/Status may be called
+// validated unrolls, the training loop of its Algorithm (MAPPO or MADDPG,
+// learner/algorithms/), versioned policy publication, metrics and
+// checkpoints. An iteration hands batch_steps joint env steps of unrolls to
+// the algorithm, one at a time as they arrive, then trains and publishes. Thread-safe: Push/CurrentPolicy/Status may be called
 // from any thread while one thread runs Run().
 class Learner {
  public:
@@ -135,17 +74,11 @@ class Learner {
   // Makes Run() return after its current iteration and Push() fail. Non-blocking.
   void Stop();
 
-  // Floats of the critic's input per agent sample.
-  int critic_dim() const;
-
-  // Bytes an iteration of `steps` joint env steps needs for its features:
-  // steps * n * (obs_dim + critic_dim) floats, four times (the batch; the
-  // featurised unrolls it is gathered from and those waiting in the queue;
-  // the minibatch gathers and activations; the trainer works on views of the
-  // batch, not copies). Measured on
-  // coop_nav before unrolls were featurised on push: the learner's peak grew
-  // 5.8 KB per joint step against this estimate's 7.0 KB.
+  // Bytes an iteration of `steps` joint env steps needs for its features
+  // (Algorithm::IterationBytes).
   int64_t IterationBytes(int64_t steps) const;
+  // The algorithm (tests).
+  const Algorithm& algorithm() const { return *algorithm_; }
 
   // Restores trainer, version and counters from a checkpoint directory's
   // newest complete checkpoint (one with its .meta), or, if that one cannot
@@ -158,16 +91,10 @@ class Learner {
   absl::Status SaveCheckpoint();
 
  private:
-  Learner(const env::Scenario* scenario, const LearnerConfig& config,
-          std::unique_ptr<PpoTrainer> trainer);
+  Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm);
 
   // An accepted unroll with its network inputs, featurised by Push.
-  struct QueuedUnroll {
-    v1::Unroll unroll;
-    std::vector<float> obs;            // [T][E][n][obs_dim]
-    std::vector<float> critic_inputs;  // [T+1][E][n][critic_dim]
-    double featurise_seconds = 0;      // On the pushing thread.
-  };
+  using QueuedUnroll = FeaturisedUnroll;
 
   // Push's checks of version, staleness and stopping; counts what it refuses.
   absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
@@ -176,21 +103,13 @@ class Learner {
   absl::Status CheckNotDuplicate(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Restore() of one checkpoint, by its .meta file.
   absl::Status RestoreFrom(const std::string& meta_path);
-  QueuedUnroll Featurise(v1::Unroll unroll) const;
   // Waits for the next queued unroll that is not stale (dropping and counting
   // stale ones); nullopt once stopping.
   std::optional<QueuedUnroll> NextUnroll();
   absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // Trains on `batch`, made of `unrolls`, publishes and writes metrics.
-  absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls, const PpoBatch& batch);
-  // Appends an unroll's samples with their advantages and value targets
-  // (values from the current critic) to `batch`.
-  absl::Status AppendToBatch(const QueuedUnroll& queued, PpoBatch* batch);
-  // Writes the critic inputs of every agent in `state`, [n][critic_dim]: the
-  // state's encoding once, copied per agent with its id. `obs`, if not null,
-  // holds the agents' observations of `state` ([n][obs_dim]), which the
-  // joint-observation input reuses instead of observing again.
-  void CriticInputsOf(const int32_t* state, const float* obs, float* out) const;
+  // Trains the algorithm on the iteration made of `unrolls` (already
+  // added), publishes and writes metrics.
+  absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
   void Publish();
   // Means over one batch of the reward server's credit diagnostics.
   struct CreditStats {
@@ -202,12 +121,11 @@ class Learner {
   };
   CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
   // Appends a row to <run_dir>/metrics.csv. Errors: INTERNAL if it cannot be written.
-  absl::Status WriteMetricsRow(const PpoStats& stats, double lag, const CreditStats& credit);
+  absl::Status WriteMetricsRow(const IterationStats& stats, double lag, const CreditStats& credit);
 
   const env::Scenario* scenario_;
   const LearnerConfig config_;
-  const env::Featurizer featurizer_;
-  std::unique_ptr<PpoTrainer> trainer_;  // Training thread only.
+  std::unique_ptr<Algorithm> algorithm_;  // Training thread only (but its thread-safe Featurise).
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::ofstream metrics_;                // Training thread only.
   bool metrics_ok_ = true;               // Training thread only: the last row was written.
@@ -215,18 +133,13 @@ class Learner {
   // When the last checkpoint was written (training thread only).
   std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   int64_t iteration_ = 0;                // Training thread only.
-  // Wall seconds of the current iteration's phases (training thread only):
-  // waiting for unrolls, featurising the batch's unrolls (on the pushing
-  // threads, off this one's path), the critic's values for GAE (with the
-  // truncation bootstraps' inputs), GAE, copying into the batch, publishing.
+  // Wall seconds of the current iteration's phases outside the algorithm
+  // (training thread only): waiting for unrolls, featurising the batch's
+  // unrolls (on the pushing threads, off this one's path), publishing.
   struct Phases {
-    double wait = 0, featurise = 0, values = 0, gae = 0, copy = 0, publish = 0;
+    double wait = 0, featurise = 0, publish = 0;
   };
   Phases phases_;
-  // EDTI's value-of-interaction rewards of the current iteration (metrics).
-  double voi_sum_ = 0;
-  int64_t voi_count_ = 0;
-  PpoBatch batch_;                       // Training thread only; reused every iteration.
   double wall_offset_ = 0;               // Seconds of earlier runs (resume).
 
   mutable absl::Mutex mu_;

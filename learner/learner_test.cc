@@ -1,4 +1,5 @@
 #include "learner/learner.h"
+#include "learner/algorithms/mappo.h"
 
 #include <cmath>
 #include <filesystem>
@@ -172,8 +173,8 @@ TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
   ASSERT_TRUE(std::getline(metrics, header));
   ASSERT_TRUE(std::getline(metrics, row));
   EXPECT_THAT(header,
-              HasSubstr(",global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward,share_1,"
-                        "share_2"));
+              HasSubstr(",global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward,updates,replay_size,"
+                        "share_1,share_2"));
   EXPECT_EQ(std::count(header.begin(), header.end(), ','), std::count(row.begin(), row.end(), ','));
 }
 
@@ -263,7 +264,7 @@ TEST_F(LearnerTest, CriticInputsAndTimeLimitOptionsTrain) {
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok()) << learner.status();
   const env::Featurizer featurizer(*scenario_);
-  EXPECT_EQ((*learner)->critic_dim(), 2 * featurizer.obs_dim() + 2);
+  EXPECT_EQ(MappoCriticDim(*scenario_, config_), 2 * featurizer.obs_dim() + 2);
   Learner* l = learner->get();
   std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
   ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());

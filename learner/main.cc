@@ -29,6 +29,23 @@ const imca::learner::LearnerConfig kDefaults;
 }  // namespace
 
 ABSL_FLAG(int64_t, steps, 2000000, "budget in joint env steps (0: until stopped)");
+ABSL_FLAG(std::string, algo, imca::learner::AlgoName(kDefaults.algo),
+          "mappo (on-policy PPO) or maddpg (off-policy, replay buffer; docs/learner.md)");
+ABSL_FLAG(int, maddpg_hidden, kDefaults.maddpg.hidden, "maddpg: hidden layer width (actor and critic)");
+ABSL_FLAG(double, maddpg_actor_lr, kDefaults.maddpg.actor_lr, "maddpg: actor Adam learning rate");
+ABSL_FLAG(double, maddpg_critic_lr, kDefaults.maddpg.critic_lr, "maddpg: critic Adam learning rate");
+ABSL_FLAG(double, maddpg_tau, kDefaults.maddpg.tau, "maddpg: soft target update rate per gradient step");
+ABSL_FLAG(double, maddpg_max_grad_norm, kDefaults.maddpg.max_grad_norm, "maddpg: grad-norm clip per network");
+ABSL_FLAG(double, maddpg_policy_reg, kDefaults.maddpg.policy_reg, "maddpg: weight of mean(logits^2) in the actor loss");
+ABSL_FLAG(int, maddpg_batch, kDefaults.maddpg.batch_size, "maddpg: transitions per gradient step");
+ABSL_FLAG(int64_t, maddpg_buffer, kDefaults.maddpg.buffer_transitions, "maddpg: replay capacity in joint transitions");
+ABSL_FLAG(int64_t, maddpg_learning_starts, kDefaults.maddpg.learning_starts,
+          "maddpg: transitions in the replay before the first update");
+ABSL_FLAG(double, updates_per_step, kDefaults.maddpg.updates_per_step,
+          "maddpg: gradient steps per joint env step; the learner takes no more data than this allows, so "
+          "actors are slowed to it");
+ABSL_FLAG(bool, maddpg_share, kDefaults.maddpg.share_parameters,
+          "maddpg: one actor and one critic (agent id in the input) for all agents; false: one of each per agent");
 ABSL_FLAG(int64_t, batch_steps, kDefaults.batch_steps, "joint env steps per PPO iteration");
 ABSL_FLAG(int, epochs, kDefaults.ppo.epochs, "PPO epochs per iteration");
 ABSL_FLAG(int, minibatches, kDefaults.ppo.minibatches, "PPO minibatches per epoch");
@@ -104,7 +121,7 @@ int Fail(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  absl::SetProgramUsageMessage("IMCA learner: multi-agent PPO over gRPC");
+  absl::SetProgramUsageMessage("IMCA learner: multi-agent PPO or MADDPG over gRPC");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
 
@@ -116,6 +133,20 @@ int main(int argc, char** argv) {
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
 
   learner::LearnerConfig config;
+  absl::StatusOr<learner::Algo> algo = learner::ParseAlgo(absl::GetFlag(FLAGS_algo));
+  if (!algo.ok()) return Fail(absl::StrCat("--algo: ", algo.status().message()));
+  config.algo = *algo;
+  config.maddpg.hidden = absl::GetFlag(FLAGS_maddpg_hidden);
+  config.maddpg.actor_lr = absl::GetFlag(FLAGS_maddpg_actor_lr);
+  config.maddpg.critic_lr = absl::GetFlag(FLAGS_maddpg_critic_lr);
+  config.maddpg.tau = absl::GetFlag(FLAGS_maddpg_tau);
+  config.maddpg.max_grad_norm = absl::GetFlag(FLAGS_maddpg_max_grad_norm);
+  config.maddpg.policy_reg = absl::GetFlag(FLAGS_maddpg_policy_reg);
+  config.maddpg.batch_size = absl::GetFlag(FLAGS_maddpg_batch);
+  config.maddpg.buffer_transitions = absl::GetFlag(FLAGS_maddpg_buffer);
+  config.maddpg.learning_starts = absl::GetFlag(FLAGS_maddpg_learning_starts);
+  config.maddpg.updates_per_step = absl::GetFlag(FLAGS_updates_per_step);
+  config.maddpg.share_parameters = absl::GetFlag(FLAGS_maddpg_share);
   config.ppo.hidden = absl::GetFlag(FLAGS_hidden);
   config.ppo.learning_rate = absl::GetFlag(FLAGS_lr);
   config.ppo.epochs = absl::GetFlag(FLAGS_epochs);

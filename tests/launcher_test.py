@@ -68,7 +68,25 @@ class LauncherDefaultsTest(unittest.TestCase):
         old = launch.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
                                  "--unroll-length", "64"])
         self.assertEqual(launch.sync_unrolls(old), 0)
-        self.assertEqual(launch.learner_option_flags(old), ["--separate_optimizers=false"])
+        self.assertEqual(launch.learner_option_flags(old), ["--algo=mappo", "--separate_optimizers=false"])
+
+    def test_maddpg_acts_asynchronously_and_keeps_old_unrolls(self):
+        args = launch.parse_args(["--algo", "maddpg", "--scenario", "spread", "--updates-per-step", "0.02"])
+        self.assertFalse(args.sync)
+        self.assertEqual(launch.sync_unrolls(args), 0)
+        flags = launch.learner_option_flags(args)
+        self.assertIn("--algo=maddpg", flags)
+        self.assertIn("--updates_per_step=0.02", flags)
+        self.assertIn(f"--max_policy_lag={launch.MADDPG_MAX_POLICY_LAG}", flags)
+        self.assertNotIn("--synchronous=true", flags)
+        # Asked for, synchronous collection is kept.
+        self.assertTrue(launch.parse_args(["--algo", "maddpg", "--sync", "true"]).sync)
+        for bad, flag in [(["--algo", "ppo"], "--algo"),
+                          (["--algo", "maddpg", "--scenario", "pass", "--reward", "edti"], "--algo")]:
+            r = run(bad)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn(flag, r.stderr)
 
     def test_eiti_runs_with_its_own_credit_and_scale(self):
         args = launch.parse_args(["--scenario", "pass", "--reward", "eiti"])

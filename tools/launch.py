@@ -25,6 +25,7 @@ REWARDS = ["count", "rnd", "sf", "eiti", "edti"]
 # coefficients (--eta, --beta-t) setting the scale.
 PER_AGENT_REWARDS = ["eiti", "edti"]
 CREDITS = ["none", "independent", "shared", "imca"]
+ALGOS = ["mappo", "maddpg"]
 PERMUTATIONS = ["off", "random", "canonical"]
 
 
@@ -67,6 +68,18 @@ LEARNER_OPTIONS = [
     ("--minibatches", "minibatches", dict(type=positive_int, help="PPO minibatches per epoch")),
     ("--max-policy-lag", "max_policy_lag", dict(type=int, help="drop unrolls older than this many versions")),
     ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of each learner pass")),
+    ("--gamma", "gamma", dict(type=float, help="extrinsic discount (MADDPG: its only one)")),
+    ("--updates-per-step", "updates_per_step",
+     dict(type=float, help="maddpg: gradient steps per joint env step; actors are slowed to it")),
+    ("--maddpg-share", "maddpg_share", dict(type=boolean, metavar="BOOL",
+                                            help="maddpg: one actor and critic for all agents (agent id input)")),
+    ("--maddpg-batch", "maddpg_batch", dict(type=positive_int, help="maddpg: transitions per gradient step")),
+    ("--maddpg-buffer", "maddpg_buffer", dict(type=positive_int, help="maddpg: replay capacity")),
+    ("--maddpg-learning-starts", "maddpg_learning_starts",
+     dict(type=positive_int, help="maddpg: replay transitions before the first update")),
+    ("--maddpg-actor-lr", "maddpg_actor_lr", dict(type=float, help="maddpg: the actors' Adam learning rate")),
+    ("--maddpg-critic-lr", "maddpg_critic_lr", dict(type=float, help="maddpg: the critics' Adam learning rate")),
+    ("--maddpg-tau", "maddpg_tau", dict(type=float, help="maddpg: soft target update rate")),
     ("--concurrent-critic", "concurrent_critic", dict(type=boolean, metavar="BOOL",
                                                       help="critic passes on a second learner thread")),
 ]
@@ -89,6 +102,11 @@ SCENARIO_DEFAULTS = {"coop_nav": {"separate_optimizers": True, "batch_steps": 20
                                   "lr": 1e-3}}
 
 
+# MADDPG's replay takes unrolls acted by any older policy version, so its
+# learner is started with a lag cap that never drops one.
+MADDPG_MAX_POLICY_LAG = 1_000_000
+
+
 def scenario_default(scenario, key):
     return SCENARIO_DEFAULTS.get(scenario, {}).get(key, GENERAL_DEFAULTS[key])
 
@@ -104,6 +122,8 @@ def parse_args(argv):
     p = OneLineParser(prog="imca train", description=__doc__,
                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="coop_nav", choices=SCENARIOS)
+    p.add_argument("--algo", default="mappo", choices=ALGOS,
+                   help="mappo (on-policy PPO) or maddpg (off-policy; docs/learner.md)")
     p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
     p.add_argument("--num-agents", type=int, default=0, help="agents (0: the scenario default)")
     p.add_argument("--step-limit", type=int, default=0, help="episode step limit (0: the scenario default)")
@@ -136,9 +156,10 @@ def parse_args(argv):
     p.add_argument("--separate-optimizers", type=boolean, default=None, metavar="BOOL",
                    help="one Adam and grad clip each for actor and critic, false: one over both "
                         "(default: true on coop_nav, false elsewhere; docs/learner.md)")
-    p.add_argument("--sync", type=boolean, default=True, metavar="BOOL",
+    p.add_argument("--sync", type=boolean, default=None, metavar="BOOL",
                    help="synchronous collection: every iteration trains on the policy it starts from; "
-                        "--batch-steps must be a multiple of actors x envs x unroll length")
+                        "--batch-steps must be a multiple of actors x envs x unroll length "
+                        "(default: true for mappo, false for maddpg)")
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
     p.add_argument("--reward-port", type=int, default=0, help="reward server port (0: a free one)")
     p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
@@ -172,6 +193,15 @@ def parse_args(argv):
     for key in GENERAL_DEFAULTS:
         if getattr(args, key) is None:
             setattr(args, key, scenario_default(args.scenario, key))
+    if args.sync is None:
+        # Off-policy MADDPG learns from a replay of any age: its actors keep
+        # acting while it trains (the update ratio paces them).
+        args.sync = args.algo == "mappo"
+    if args.algo == "maddpg":
+        if args.reward == "edti":
+            p.error("argument --algo: edti's value of interaction is a MAPPO value head; use --algo mappo")
+        if args.max_policy_lag is None:
+            args.max_policy_lag = MADDPG_MAX_POLICY_LAG
     per_agent = args.reward in PER_AGENT_REWARDS
     if args.credit is None:
         args.credit = "independent" if per_agent else "imca"
@@ -215,7 +245,7 @@ def parse_args(argv):
 
 def learner_option_flags(args):
     """The learner flags of the options the user gave (others keep the binary's default)."""
-    flags = []
+    flags = [f"--algo={args.algo}"]
     for flag, name, _ in LEARNER_OPTIONS:
         value = getattr(args, flag[2:].replace("-", "_"))
         if value is not None:

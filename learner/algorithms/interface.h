@@ -1,0 +1,84 @@
+#ifndef IMCA_LEARNER_ALGORITHMS_INTERFACE_H_
+#define IMCA_LEARNER_ALGORITHMS_INTERFACE_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "imca/v1/learner_service.pb.h"
+#include "imca/v1/unroll.pb.h"
+
+namespace imca::learner {
+
+// The learner's training algorithm, behind which the service, the queue,
+// policy versions, checkpoints' metadata and metrics are shared
+// (learner/learner.h). Two implementations: MAPPO (mappo.h, on-policy: an
+// iteration's unrolls become one PPO batch) and MADDPG (maddpg.h,
+// off-policy: unrolls go into a replay buffer and the algorithm takes as many
+// gradient steps as the configured ratio of updates to env steps allows).
+// Torch stays behind the implementations' .cc files.
+
+// A validated unroll with the network inputs its algorithm computed on the
+// pushing thread (the training thread then only trains).
+struct FeaturisedUnroll {
+  v1::Unroll unroll;
+  std::vector<float> obs;            // Algorithm-specific layouts (see each).
+  std::vector<float> critic_inputs;
+  double featurise_seconds = 0;
+};
+
+// What one iteration did: the metrics row's algorithm columns. Fields an
+// algorithm has no notion of stay 0.
+struct IterationStats {
+  double policy_loss = 0;    // PPO surrogate; MADDPG -mean Q_i (+ logit regulariser).
+  double value_loss = 0;     // PPO value loss; MADDPG critic TD error^2.
+  double entropy = 0;        // Of the policy on the trained samples.
+  double approx_kl = 0;      // PPO only.
+  double clip_fraction = 0;  // PPO only.
+  double behaviour_kl = 0;   // PPO only.
+  double grad_norm = 0;
+  int64_t updates = 0;       // Gradient steps taken (PPO: minibatch steps).
+  int64_t replay_size = 0;   // Transitions held (off-policy only).
+  double voi_reward = 0;     // EDTI's value-of-interaction reward (MAPPO --edti).
+  // Wall seconds: adding the iteration's unrolls (values, GAE and copying for
+  // PPO; inserting and the due updates for MADDPG), then Train's phases.
+  double seconds_values = 0, seconds_gae = 0, seconds_copy = 0;
+  double seconds_prepare = 0, seconds_forward = 0, seconds_backward = 0, seconds_optimizer = 0;
+  // Steps (minibatches) skipped because their loss or gradient was not
+  // finite, and why the first failed.
+  int64_t minibatches_skipped = 0;
+  std::string skip_reason;
+};
+
+// Not thread-safe except where noted: the learner's training thread owns it.
+class Algorithm {
+ public:
+  virtual ~Algorithm() = default;
+
+  // Thread-safe, called on the pushing threads: the unroll's network inputs.
+  virtual FeaturisedUnroll Featurise(v1::Unroll unroll) const = 0;
+  // Thread-safe: bytes an iteration of `steps` joint env steps holds in
+  // features (the learner's memory cap, --max_batch_mb).
+  virtual int64_t IterationBytes(int64_t steps) const = 0;
+
+  // Takes one unroll of the current iteration. Errors: INTERNAL (torch).
+  virtual absl::Status Add(const FeaturisedUnroll& unroll) = 0;
+  // Ends the iteration and returns what it did. Errors, each leaving the
+  // weights as they were: INVALID_ARGUMENT, a batch the algorithm refuses
+  // (the learner drops it and publishes the same weights again); INTERNAL.
+  virtual absl::StatusOr<IterationStats> Train() = 0;
+
+  // The acting policy, as the actors load it (learner_service.proto).
+  virtual v1::Policy ExportPolicy(int64_t version) const = 0;
+  // The algorithm's whole state. Errors: INTERNAL on I/O; Load:
+  // INVALID_ARGUMENT if the file does not fit this configuration (nothing
+  // changed).
+  virtual absl::Status Save(const std::string& path) const = 0;
+  virtual absl::Status Load(const std::string& path) = 0;
+};
+
+}  // namespace imca::learner
+
+#endif  // IMCA_LEARNER_ALGORITHMS_INTERFACE_H_

@@ -1,0 +1,112 @@
+#ifndef IMCA_LEARNER_LEARNER_CONFIG_H_
+#define IMCA_LEARNER_LEARNER_CONFIG_H_
+
+#include <cstdint>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "learner/gae.h"
+#include "learner/ppo_trainer.h"
+
+namespace imca::learner {
+
+// What the centralised critic sees besides the agent-id one-hot.
+enum class CriticInput {
+  kState,     // The global state encoding (featurizer global_dim).
+  kJointObs,  // All agents' observations concatenated in agent order (n * obs_dim),
+              // on-policy's MAPPO "share_obs".
+};
+
+// How the step limit ends an episode for the learner.
+enum class TimeLimit {
+  kBootstrap,  // Truncation: the value of the state reached bootstraps the return.
+  kTerminal,   // As termination: no bootstrap (on-policy's MPE runner).
+};
+
+// "state" / "joint_obs", "bootstrap" / "terminal"; parsers return
+// INVALID_ARGUMENT naming the accepted values.
+std::string CriticInputName(CriticInput input);
+absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name);
+std::string TimeLimitName(TimeLimit limit);
+absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name);
+
+// MADDPG for discrete actions (learner/algorithms/maddpg.h, docs/learner.md
+// "MADDPG"): the reference implementations' defaults (BASELINES.md 2) where
+// our episodes allow them.
+struct MaddpgConfig {
+  int hidden = 64;                  // Two hidden ReLU layers, actor and critic.
+  double actor_lr = 1e-2;           // Adam, both nets (reference 1e-2).
+  double critic_lr = 1e-2;
+  double tau = 0.01;                // Soft target update per gradient step.
+  double max_grad_norm = 0.5;       // Per network.
+  double policy_reg = 1e-3;         // * mean(logits^2) in the actor loss.
+  int batch_size = 1024;            // Transitions per gradient step.
+  int64_t buffer_transitions = 1000000;  // Joint transitions kept (FIFO).
+  int64_t learning_starts = 25600;  // No update before the replay holds this many.
+  // Gradient steps per joint env step inserted (the reference's one per 100
+  // env steps). Enforced both ways: the learner takes no more unrolls than
+  // the updates due so far allow (the queue fills and pushes wait, so the
+  // actors slow down), and takes no update ahead of the data.
+  double updates_per_step = 0.01;
+  // One actor (the observation carries the agent id, as MAPPO's) and one
+  // critic with an agent-id input, or n of each.
+  bool share_parameters = true;
+};
+
+// The learner's algorithm.
+enum class Algo {
+  kMappo,   // On-policy multi-agent PPO (learner/algorithms/mappo.h).
+  kMaddpg,  // Off-policy MADDPG (learner/algorithms/maddpg.h).
+};
+// "mappo" / "maddpg"; the parser returns INVALID_ARGUMENT naming them.
+std::string AlgoName(Algo algo);
+absl::StatusOr<Algo> ParseAlgo(const std::string& name);
+
+struct LearnerConfig {
+  Algo algo = Algo::kMappo;
+  PpoConfig ppo;                  // MAPPO only.
+  MaddpgConfig maddpg;            // MADDPG only; its discount is `gamma`, its seed ppo.seed.
+  CriticInput critic_input = CriticInput::kState;
+  TimeLimit time_limit = TimeLimit::kBootstrap;
+  // Synchronous collection: an iteration trains only on unrolls acted with
+  // the policy it starts from (lag 0). Push refuses any other version, and
+  // once batch_steps of the current version are queued, further unrolls of
+  // it (both as "stale ..."). Actors should act a fixed number of unrolls
+  // per version and then wait for the next (actor --sync_unrolls).
+  bool synchronous = false;
+  // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
+  // value of interaction (EdtiInteractionRewards, learner/gae.h, from the
+  // unroll's influences and the critic's values of the influenced agents),
+  // learned by a third value head (ppo.value_heads must be 3). Push refuses
+  // unrolls without influences (INVALID_ARGUMENT naming unroll.influences).
+  bool edti = false;
+  EdtiCoefficients edti_coefficients;
+  double gamma = 0.99;            // Extrinsic discount.
+  double gamma_int = 0.99;        // Intrinsic discount.
+  double lambda = 0.95;           // GAE lambda (both heads).
+  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int.
+  int64_t batch_steps = 4096;     // Joint env steps (T*E summed over unrolls) per iteration.
+  int max_policy_lag = 4;         // Unrolls older than this many versions are dropped.
+  int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
+  int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
+  std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
+  // If set, a CSV row per trained unroll (iteration, actor_id, incarnation,
+  // sequence, policy_version); rows of iterations a restart rolled back are
+  // dropped.
+  std::string trained_log;
+  // A checkpoint is written every checkpoint_every iterations and whenever
+  // checkpoint_seconds have passed since the last one (0 turns either off),
+  // and at the end: a killed learner loses at most that much training.
+  int checkpoint_every = 50;
+  double checkpoint_seconds = 30;
+  int metrics_window = 200;       // Episodes in the success-rate / return windows.
+  // Cap on an iteration's feature arrays (policy and critic inputs, and the
+  // trainer's copy of them; see Learner::IterationBytes). Create() rejects a
+  // batch_steps over it and Push() an unroll that would push a batch over it,
+  // so a large map with large unrolls is an error, not an out-of-memory kill.
+  int64_t max_batch_bytes = int64_t{8192} * 1000 * 1000;  // --max_batch_mb 8192
+};
+
+}  // namespace imca::learner
+
+#endif  // IMCA_LEARNER_LEARNER_CONFIG_H_
