@@ -360,7 +360,18 @@ absl::Status Learner::Run() {
       phases_.wait += Lap(lap);
       if (!queued.has_value()) break;  // Stopping.
       phases_.featurise += queued->featurise_seconds;
-      IMCA_RETURN_IF_ERROR(algorithm_->Add(*queued));
+      // Adding may train (MADDPG's due updates): like Train, it is not a stall.
+      {
+        absl::MutexLock lock(&mu_);
+        training_since_ = std::chrono::steady_clock::now();
+      }
+      const absl::Status added = algorithm_->Add(*queued);
+      {
+        absl::MutexLock lock(&mu_);
+        training_since_.reset();
+        last_progress_ = std::chrono::steady_clock::now();
+      }
+      IMCA_RETURN_IF_ERROR(added);
       lap = Clock::now();
       steps += Steps(queued->unroll);
       unrolls.push_back(std::move(queued->unroll));

@@ -158,7 +158,7 @@ class Learner {
   int64_t pushers_waiting_ ABSL_GUARDED_BY(mu_) = 0;  // Pushes blocked in the wait for room.
   // The training thread's last dequeue or publication.
   std::chrono::steady_clock::time_point last_progress_ ABSL_GUARDED_BY(mu_) = std::chrono::steady_clock::now();
-  // Set while the trainer runs an iteration's PPO epochs.
+  // Set while the algorithm adds an unroll (which may train) or trains.
   std::optional<std::chrono::steady_clock::time_point> training_since_ ABSL_GUARDED_BY(mu_);
   int64_t unrolls_duplicate_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t actor_incarnations_ ABSL_GUARDED_BY(mu_) = 0;

@@ -66,7 +66,7 @@ struct LearnerConfig {
   Algo algo = Algo::kMappo;
   PpoConfig ppo;                  // MAPPO only.
   MaddpgConfig maddpg;            // MADDPG only; its discount is `gamma`, its seed ppo.seed.
-  CriticInput critic_input = CriticInput::kState;
+  CriticInput critic_input = CriticInput::kState;  // MAPPO only (MADDPG's critic: joint obs and actions).
   TimeLimit time_limit = TimeLimit::kBootstrap;
   // Synchronous collection: an iteration trains only on unrolls acted with
   // the policy it starts from (lag 0). Push refuses any other version, and
@@ -84,8 +84,10 @@ struct LearnerConfig {
   double gamma = 0.99;            // Extrinsic discount.
   double gamma_int = 0.99;        // Intrinsic discount.
   double lambda = 0.95;           // GAE lambda (both heads).
-  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int.
-  int64_t batch_steps = 4096;     // Joint env steps (T*E summed over unrolls) per iteration.
+  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int (MADDPG: r = r_ext + c_int r_int).
+  // Joint env steps (T*E summed over unrolls) per iteration: MAPPO's batch,
+  // MADDPG's interval between policy publications.
+  int64_t batch_steps = 4096;
   int max_policy_lag = 4;         // Unrolls older than this many versions are dropped.
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
   int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).

@@ -46,7 +46,8 @@ ABSL_FLAG(double, updates_per_step, kDefaults.maddpg.updates_per_step,
           "actors are slowed to it");
 ABSL_FLAG(bool, maddpg_share, kDefaults.maddpg.share_parameters,
           "maddpg: one actor and one critic (agent id in the input) for all agents; false: one of each per agent");
-ABSL_FLAG(int64_t, batch_steps, kDefaults.batch_steps, "joint env steps per PPO iteration");
+ABSL_FLAG(int64_t, batch_steps, kDefaults.batch_steps,
+          "joint env steps per iteration (mappo: the PPO batch; maddpg: between policy publications)");
 ABSL_FLAG(int, epochs, kDefaults.ppo.epochs, "PPO epochs per iteration");
 ABSL_FLAG(int, minibatches, kDefaults.ppo.minibatches, "PPO minibatches per epoch");
 ABSL_FLAG(double, lr, kDefaults.ppo.learning_rate, "Adam learning rate");

@@ -53,12 +53,14 @@ MlpImpl::MlpImpl(const MlpOptions& options) : options_(options) {
 
 torch::Tensor MlpImpl::forward(torch::Tensor x) {
   if (!input_norm_.is_empty()) x = input_norm_->forward(x);
-  for (size_t i = 0; i < layers_.size(); ++i) {
-    x = layers_[i]->forward(x);
-    if (i + 1 < layers_.size()) {
-      x = options_.activation() == Activation::kTanh ? torch::tanh(x) : torch::relu(x);
-      if (!norms_.empty()) x = norms_[i]->forward(x);
-    }
+  return ForwardFrom(layers_[0]->forward(x), 0);
+}
+
+torch::Tensor MlpImpl::ForwardFrom(torch::Tensor x, size_t layer) {
+  for (size_t i = layer; i + 1 < layers_.size(); ++i) {
+    x = options_.activation() == Activation::kTanh ? torch::tanh(x) : torch::relu(x);
+    if (!norms_.empty()) x = norms_[i]->forward(x);
+    x = layers_[i + 1]->forward(x);
   }
   return x;
 }

@@ -44,6 +44,11 @@ class MlpImpl : public torch::nn::Module {
   explicit MlpImpl(const MlpOptions& options);
 
   torch::Tensor forward(torch::Tensor x);
+  // The rest of forward after layer `layer`'s Linear: from its output
+  // (pre-activation) on. forward(x) is ForwardFrom(layers()[0](norm(x)), 0);
+  // a caller that computes the first layer in parts (MADDPG's critic, whose
+  // joint-observation part is the same for every agent) continues here.
+  torch::Tensor ForwardFrom(torch::Tensor pre_activation, size_t layer);
 
   const MlpOptions& options() const { return options_; }
   std::vector<torch::nn::Linear>& layers() { return layers_; }

@@ -58,6 +58,21 @@ TEST(MlpTest, ForwardIsLinearActivationLinear) {
   EXPECT_FALSE(SetLinear(tanh, 0, {1}, {1}).ok());
 }
 
+TEST(MlpTest, ForwardFromALayerContinuesTheForwardPass) {
+  for (bool layer_norm : {false, true}) {
+    Mlp mlp(MlpOptions({4, 6, 5, 2}).layer_norm(layer_norm).seed(3));
+    const torch::Tensor x = torch::randn({7, 4});
+    torch::nn::LayerNorm input_norm = mlp->input_norm();  // A holder sharing the module.
+    const torch::Tensor in = layer_norm ? input_norm->forward(x) : x;
+    EXPECT_TRUE(torch::allclose(mlp->ForwardFrom(mlp->layers()[0]->forward(in), 0), mlp->forward(x)));
+    // The first layer in two parts (columns 0-1 and 2-3), as MADDPG's critic.
+    const torch::Tensor w = mlp->layers()[0]->weight;
+    const torch::Tensor parts = torch::matmul(in.narrow(1, 0, 2), w.narrow(1, 0, 2).t()) +
+                                torch::matmul(in.narrow(1, 2, 2), w.narrow(1, 2, 2).t()) + mlp->layers()[0]->bias;
+    EXPECT_TRUE(torch::allclose(mlp->ForwardFrom(parts, 0), mlp->forward(x), 1e-5, 1e-6));
+  }
+}
+
 TEST(MlpTest, LayerNormModulesAreNamedAsCheckpointsExpect) {
   Mlp mlp(MlpOptions({3, 4, 4, 2}).layer_norm(true));
   std::vector<std::string> names;

@@ -31,6 +31,22 @@ def grid_file(directory, entries, name="tiny"):
     return path
 
 
+class PresetsTest(unittest.TestCase):
+    def test_maddpg_rows_parse_and_are_labelled_by_their_algorithm(self):
+        import experiment
+        for preset in ("paper", "edti"):
+            cells = experiment.expand(experiment.PRESETS[preset]["entries"], preset)
+            experiment.check_flags(cells)  # Every cell's flags are valid ./imca train flags.
+            label = experiment.labeller(cells)
+            labels = {label(cell) for cell in cells}
+            self.assertTrue({"maddpg none", "maddpg imca", "none", "imca"} <= labels, (preset, labels))
+            maddpg = [cell for cell in cells if cell["flags"].get("algo") == "maddpg"]
+            self.assertEqual(len(maddpg), (3 if preset == "paper" else 2) * 2 * 5, preset)
+            # MAPPO's cells keep their ids (and so their finished runs).
+            self.assertIn("coop_nav-count-imca-off-s1-2000k" if preset == "paper" else "pass-count-imca-off-s1-3000k",
+                          {experiment.cell_id(cell) for cell in cells})
+
+
 class ExperimentErrorsTest(unittest.TestCase):
     def check_one_line(self, entries, *words):
         with tempfile.TemporaryDirectory() as tmp:

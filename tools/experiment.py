@@ -41,29 +41,42 @@ IMCA_PERMUTATIONS = ["off", "random", "canonical"]
 BASELINES = ["none", "independent", "shared"]
 
 
-def pairing(scenario, reward, steps, seeds):
-    """The paper's methods on one scenario: three baselines, imca x permutations.
-    SF's joint input is not permuted (SPEC 5: permutations apply to count and
-    RND), so its imca runs only with permutation off."""
-    return [{"scenario": scenario, "reward": reward, "credit": BASELINES, "permutation": "off",
-             "seed": seeds, "steps": steps},
-            {"scenario": scenario, "reward": reward, "credit": "imca",
-             "permutation": "off" if reward == "sf" else IMCA_PERMUTATIONS, "seed": seeds, "steps": steps}]
+def pairing(scenario, reward, steps, seeds, maddpg=False):
+    """The paper's methods on one scenario: three baselines, imca x permutations
+    (and with `maddpg` the paper's other learner, MADDPG, without and with the
+    IMCA bonus). SF's joint input is not permuted (SPEC 5: permutations apply
+    to count and RND), so its imca runs only with permutation off."""
+    entries = [{"scenario": scenario, "reward": reward, "credit": BASELINES, "permutation": "off",
+                "seed": seeds, "steps": steps},
+               {"scenario": scenario, "reward": reward, "credit": "imca",
+                "permutation": "off" if reward == "sf" else IMCA_PERMUTATIONS, "seed": seeds, "steps": steps}]
+    if maddpg:
+        entries.append(maddpg_rows(scenario, reward, steps, seeds))
+    return entries
+
+
+def maddpg_rows(scenario, reward, steps, seeds):
+    """MADDPG (docs/learner.md) with credit none and with the IMCA bonus."""
+    return {"scenario": scenario, "reward": reward, "credit": ["none", "imca"], "permutation": "off",
+            "seed": seeds, "steps": steps, "flags": {"algo": "maddpg"}}
 
 
 PRESETS = {
     "paper": {
         "description": "the paper's comparison: coop_nav + count, predator_prey + RND, multi_room + SF; "
-                       "credit none/independent/shared/imca, imca with permutation off/random/canonical; 5 seeds",
-        "entries": pairing("coop_nav", "count", 2_000_000, [1, 2, 3, 4, 5])
-        + pairing("predator_prey", "rnd", 2_000_000, [1, 2, 3, 4, 5])
-        + pairing("multi_room", "sf", 4_000_000, [1, 2, 3, 4, 5]),
+                       "credit none/independent/shared/imca, imca with permutation off/random/canonical, "
+                       "and MADDPG with credit none/imca; 5 seeds",
+        "entries": pairing("coop_nav", "count", 2_000_000, [1, 2, 3, 4, 5], maddpg=True)
+        + pairing("predator_prey", "rnd", 2_000_000, [1, 2, 3, 4, 5], maddpg=True)
+        + pairing("multi_room", "sf", 4_000_000, [1, 2, 3, 4, 5], maddpg=True),
     },
     "edti": {
         "description": "EDTI's exact tasks pass and secret_room: count novelty with credit none/shared/imca "
-                       "against EITI and EDTI (docs/baselines.md); 5 seeds; 3M env steps",
+                       "against EITI and EDTI (docs/baselines.md), and MADDPG with credit none/imca; 5 seeds; "
+                       "3M env steps",
         "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
                      "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000},
+                    maddpg_rows(["pass", "secret_room"], "count", 3_000_000, [1, 2, 3, 4, 5]),
                     {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
                      "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000}],
     },
@@ -157,7 +170,12 @@ def labeller(cells):
         label = cell["reward"] if per_agent else cell["credit"]
         if cell["permutation"] != "off":
             label += f"/{cell['permutation']}"
-        shown = {k: v for k, v in settings(cell).items() if k in varying[(cell["scenario"], cell["reward"])]}
+        # Another learner algorithm than MAPPO leads the label ("maddpg imca").
+        algo = cell["flags"].get("algo", "mappo")
+        if algo != "mappo":
+            label = f"{algo} {label}"
+        shown = {k: v for k, v in settings(cell).items()
+                 if k in varying[(cell["scenario"], cell["reward"])] and k != "algo"}
         return label + (" " + flags_text(shown) if shown else "")
 
     return method

@@ -74,6 +74,13 @@ def write(out, cells, summaries, method, cell_id):
                 row[f"steps_to_{pct}_mean"], row[f"steps_to_{pct}_ci95"] = mean_ci(hits) if hits else (None, None)
                 row[f"reached_{pct}"] = len(hits)
             row["wall_seconds_mean"] = statistics.mean(s["wall_seconds"] for _, s in done)
+            row["steps_per_second"] = statistics.mean(s["env_steps"] / max(s["wall_seconds"], 1e-9) for _, s in done)
+            # The training episodes' mean team return at the end (the
+            # dense-reward tasks' measure; the last metrics row's window).
+            finals = [float(rows_[-1]["episode_return"]) for rows_ in
+                      (read_metrics(os.path.join(out, "cells", cell_id(c))) for c, _ in done) if rows_]
+            if finals:
+                row["return_mean"], row["return_ci95"] = mean_ci(finals)
         rows.append(row)
     write_table_csv(out, rows)
     write_table_md(out, rows)
@@ -98,7 +105,7 @@ def write_runs_csv(out, cells, summaries, method, cell_id):
 def write_table_csv(out, rows):
     fields = ["scenario", "reward", "method", "seeds_done", "seeds", "budget", "success_mean", "success_ci95",
               "steps_to_80_mean", "steps_to_80_ci95", "reached_80", "steps_to_90_mean", "steps_to_90_ci95",
-              "reached_90", "wall_seconds_mean"]
+              "reached_90", "wall_seconds_mean", "steps_per_second", "return_mean", "return_ci95"]
     with open(os.path.join(out, "table.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
@@ -107,16 +114,24 @@ def write_table_csv(out, rows):
 
 def write_table_md(out, rows):
     lines = ["| scenario | reward | method | seeds | final success: mean [95% CI] | env steps to 80% "
-             "| env steps to 90% | wall time / run |", "|---|---|---|---|---|---|---|---|"]
+             "| env steps to 90% | final return: mean [95% CI] | wall time / run | env steps/s |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["seeds_done"] == 0:
-            lines.append(f"| {r['scenario']} | {r['reward']} | {r['method']} | 0/{r['seeds']} | not run yet | | | |")
+            lines.append(f"| {r['scenario']} | {r['reward']} | {r['method']} | 0/{r['seeds']} | not run yet "
+                         "| | | | | |")
             continue
+        final_return = "-"
+        if r.get("return_mean") is not None:
+            final_return = f"{r['return_mean']:.1f}"
+            if r.get("return_ci95") is not None:  # None for one seed.
+                final_return += (f" [{r['return_mean'] - r['return_ci95']:.1f}, "
+                                 f"{r['return_mean'] + r['return_ci95']:.1f}]")
         lines.append(
             f"| {r['scenario']} | {r['reward']} | {r['method']} | {r['seeds_done']}/{r['seeds']} "
             f"| {fmt_pct(r['success_mean'], r['success_ci95'])} "
-            f"| {fmt_steps(r, 80)} | {fmt_steps(r, 90)} "
-            f"| {r['wall_seconds_mean']:.0f} s |")
+            f"| {fmt_steps(r, 80)} | {fmt_steps(r, 90)} | {final_return} "
+            f"| {r['wall_seconds_mean']:.0f} s | {r['steps_per_second']:,.0f} |")
     lines.append("")
     lines.append("Budget per run in env steps: " + ", ".join(
         sorted({f"{r['scenario']} {r['budget']:,}" for r in rows})) + ". Steps to 80%/90%: mean over the "
@@ -133,7 +148,8 @@ def curve(rows, grid, key="success_rate"):
     for x in grid:
         while j + 1 < len(xs) and xs[j + 1] <= x:
             j += 1
-        out.append(ys[j] if j >= 0 else 0.0)
+        # Before the first row: no success yet; other columns hold their first value.
+        out.append(ys[j] if j >= 0 else (0.0 if key == "success_rate" or not ys else ys[0]))
     return out
 
 
@@ -160,6 +176,8 @@ def plots(out, groups, method, cell_id):
             continue  # Nothing finished yet for this scenario.
         curves_figure(out, methods, cell_id, plt, f"{scenario} + {reward}: mean and 95% CI over seeds",
                       os.path.join(out, f"curves-{scenario}-{reward}.png"))
+        curves_figure(out, methods, cell_id, plt, f"{scenario} + {reward}: team return, mean and 95% CI over seeds",
+                      os.path.join(out, f"returns-{scenario}-{reward}.png"), key="episode_return")
         # GIF of each method's final policy (its first finished seed).
         os.makedirs(gif_dir, exist_ok=True)
         for label, members in methods:
@@ -172,8 +190,9 @@ def plots(out, groups, method, cell_id):
         shares_plot(out, scenario, reward, methods, cell_id, plt)
 
 
-def curves_figure(out, methods, cell_id, plt, title, path):
-    """Evaluation success over env steps, one line (mean, 95% CI band) per method."""
+def curves_figure(out, methods, cell_id, plt, title, path, key="success_rate"):
+    """A metrics column over env steps (evaluation success by default), one
+    line (mean, 95% CI band) per method."""
     if not any(s is not None for _, members in methods for _, s in members):
         return
     fig, ax = plt.subplots(figsize=(7, 4.2))
@@ -184,19 +203,23 @@ def curves_figure(out, methods, cell_id, plt, title, path):
             continue
         budget = members[0][0]["steps"]
         grid = [budget * i / 100 for i in range(101)]
-        ys = [curve(r, grid) for r in runs]
+        ys = [curve(r, grid, key) for r in runs]
         mean = [statistics.mean(col) for col in zip(*ys)]
         line, = ax.plot(grid, mean, lw=1.6, label=f"{label} ({len(runs)})")
         if len(runs) > 1:
             half = [mean_ci(list(col))[1] for col in zip(*ys)]
-            ax.fill_between(grid, [max(0, m - h) for m, h in zip(mean, half)],
-                            [min(1, m + h) for m, h in zip(mean, half)], color=line.get_color(), alpha=0.15)
+            low, high = (0, 1) if key == "success_rate" else (-math.inf, math.inf)
+            ax.fill_between(grid, [max(low, m - h) for m, h in zip(mean, half)],
+                            [min(high, m + h) for m, h in zip(mean, half)], color=line.get_color(), alpha=0.15)
     ax.set_xlabel("env steps")
-    ax.set_ylabel("evaluation success rate")
-    ax.set_ylim(-0.02, 1.02)
+    if key == "success_rate":
+        ax.set_ylabel("evaluation success rate")
+        ax.set_ylim(-0.02, 1.02)
+    else:
+        ax.set_ylabel(key.replace("_", " "))
     ax.grid(alpha=0.3)
     ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=8, loc="upper left" if key == "success_rate" else "lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
