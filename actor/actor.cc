@@ -95,11 +95,11 @@ bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
 
 bool Actor::Adopt(const v1::Policy& policy) {
   absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
-  if (!mlp.ok() || mlp->obs_dim() != featurizer_.obs_dim() || mlp->num_actions() != scenario_->num_actions() ||
-      (mlp->agent_networks() != 0 && mlp->agent_networks() != scenario_->num_agents())) {
-    policy_error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ",
-                                                     mlp.ok() ? "observation, action or agent count differs"
-                                                              : mlp.status().message()));
+  absl::Status fits = mlp.ok() ? mlp->Fits(featurizer_.obs_dim(), scenario_->num_actions(), scenario_->num_agents())
+                               : mlp.status();
+  if (!fits.ok()) {
+    policy_error_ = absl::InternalError(
+        absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ", fits.message()));
     return false;
   }
   policy_ = *std::move(mlp);

@@ -104,6 +104,19 @@ absl::StatusOr<PolicyMlp> PolicyMlp::FromProto(const v1::Policy& policy) {
   return mlp;
 }
 
+absl::Status PolicyMlp::Fits(int obs_dim, int num_actions, int num_agents) const {
+  if (obs_dim_ != obs_dim || num_actions_ != num_actions) {
+    return absl::InvalidArgumentError(absl::StrCat("the policy's observation or action size (", obs_dim_, ", ",
+                                                   num_actions_, ") differs from the scenario's (", obs_dim, ", ",
+                                                   num_actions, ")"));
+  }
+  if (agent_networks_ != 0 && agent_networks_ != num_agents) {
+    return absl::InvalidArgumentError(absl::StrCat("the policy has networks for ", agent_networks_,
+                                                   " agents, the scenario has ", num_agents));
+  }
+  return absl::OkStatus();
+}
+
 void PolicyMlp::ApplyLayerNorm(const LayerNorm& norm, Eigen::Ref<Matrix> x) {
   const Eigen::Index cols = x.cols();
   for (Eigen::Index r = 0; r < x.rows(); ++r) {
@@ -161,9 +174,12 @@ void PolicyMlp::Probabilities(const float* obs, int batch, float* probs) {
     softmax_rows(nets_[0].scratch.back().topRows(batch), [](int r) { return r; });
     return;
   }
-  const int k = agent_networks_, rows = batch / k;
-  if (gathered_.rows() < rows) gathered_.resize(rows, obs_dim_);
+  const int k = agent_networks_;
+  const int most = (batch + k - 1) / k;
+  if (gathered_.rows() < most) gathered_.resize(most, obs_dim_);
   for (int a = 0; a < k; ++a) {
+    const int rows = (batch - a + k - 1) / k;  // Rows r * k + a < batch (every row, for any batch).
+    if (rows <= 0) continue;
     for (int r = 0; r < rows; ++r) gathered_.row(r) = raw.row(r * k + a);
     Forward(nets_[a], gathered_.topRows(rows), rows);
     softmax_rows(nets_[a].scratch.back().topRows(rows), [&](int r) { return r * k + a; });

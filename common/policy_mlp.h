@@ -30,11 +30,13 @@ class PolicyMlp {
   int num_actions() const { return num_actions_; }
   // 0: shared; else the number of per-agent networks.
   int agent_networks() const { return agent_networks_; }
+  // OK if this policy can act in a scenario of these sizes; else
+  // INVALID_ARGUMENT saying which size differs.
+  absl::Status Fits(int obs_dim, int num_actions, int num_agents) const;
 
   // obs: [batch][obs_dim] row-major; writes softmax probabilities
   // [batch][num_actions] into probs. With per-agent networks, row r is agent
-  // (r mod agent_networks)'s observation ([env][agent] rows), so batch must
-  // be a multiple of agent_networks.
+  // (r mod agent_networks)'s observation ([env][agent] rows).
   void Probabilities(const float* obs, int batch, float* probs);
 
  private:

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
 namespace imca {
@@ -100,6 +101,15 @@ TEST(PolicyMlpTest, PerAgentNetworksActOnTheirAgentsRows) {
     EXPECT_NEAR(probs[(e * 2 + 0) * 2 + 1], p3, 1e-6) << e;
     EXPECT_NEAR(probs[(e * 2 + 1) * 2 + 0], p2, 1e-6) << e;
   }
+  // Any batch: three rows are agents 0, 1, 0.
+  float odd[6] = {-1, -1, -1, -1, -1, -1};
+  mlp->Probabilities(obs, 3, odd);
+  EXPECT_NEAR(odd[1], p3, 1e-6);
+  EXPECT_NEAR(odd[2], p2, 1e-6);
+  EXPECT_NEAR(odd[5], p3, 1e-6);
+  EXPECT_TRUE(mlp->Fits(1, 2, 2).ok());
+  EXPECT_THAT(std::string(mlp->Fits(1, 2, 3).message()), ::testing::HasSubstr("networks for 2 agents"));
+  EXPECT_FALSE(mlp->Fits(2, 2, 2).ok());
   policy.mutable_tensors()->RemoveLast();
   EXPECT_FALSE(PolicyMlp::FromProto(policy).ok());  // agent1.policy.0.bias missing.
   policy.set_agent_networks(-1);

@@ -183,9 +183,11 @@ absl::StatusOr<PolicyMlp> LoadPolicy(const std::string& path, const env::Scenari
   }
   absl::StatusOr<PolicyMlp> policy = PolicyMlp::FromProto(proto);
   if (!policy.ok()) return policy.status();
-  if (policy->obs_dim() != env::Featurizer(scenario).obs_dim() || policy->num_actions() != scenario.num_actions()) {
+  if (const absl::Status fits =
+          policy->Fits(env::Featurizer(scenario).obs_dim(), scenario.num_actions(), scenario.num_agents());
+      !fits.ok()) {
     return absl::InvalidArgumentError(
-        absl::StrCat("'", path, "' was trained on another scenario or map (observation or action size differs)"));
+        absl::StrCat("'", path, "' was trained on another scenario or map: ", fits.message()));
   }
   return policy;
 }

@@ -249,7 +249,7 @@ absl::Status Learner::Admit(const v1::Unroll& unroll) {
                                                         " is full (synchronous learner)"));
     }
     version_steps_ += Steps(unroll);
-  } else if (version_ - unroll.policy_version() > config_.max_policy_lag) {
+  } else if (!algorithm_->off_policy() && version_ - unroll.policy_version() > config_.max_policy_lag) {
     ++unrolls_stale_;
     return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
                                                       " is more than ", config_.max_policy_lag,
@@ -335,7 +335,7 @@ std::optional<Learner::QueuedUnroll> Learner::NextUnroll() {
     queue_.pop_front();
     last_progress_ = std::chrono::steady_clock::now();
     queued_steps_ -= Steps(queued.unroll);
-    if (version_ - queued.unroll.policy_version() > config_.max_policy_lag) {
+    if (!algorithm_->off_policy() && version_ - queued.unroll.policy_version() > config_.max_policy_lag) {
       ++unrolls_stale_;
       continue;
     }
@@ -376,7 +376,14 @@ absl::Status Learner::Run() {
       steps += Steps(queued->unroll);
       unrolls.push_back(std::move(queued->unroll));
     }
-    if (steps < config_.batch_steps) break;
+    if (steps < config_.batch_steps) {
+      // Stopping mid-iteration: an off-policy algorithm has already trained
+      // on what it added, so that iteration is counted and published (the
+      // final checkpoint's weights then match its version); MAPPO's partial
+      // batch is dropped untrained.
+      if (algorithm_->off_policy() && !unrolls.empty()) IMCA_RETURN_IF_ERROR(TrainOn(unrolls));
+      break;
+    }
     IMCA_RETURN_IF_ERROR(TrainOn(unrolls));
     if ((config_.checkpoint_every > 0 && iteration_ % config_.checkpoint_every == 0) ||
         (config_.checkpoint_seconds > 0 &&

@@ -88,7 +88,7 @@ struct LearnerConfig {
   // Joint env steps (T*E summed over unrolls) per iteration: MAPPO's batch,
   // MADDPG's interval between policy publications.
   int64_t batch_steps = 4096;
-  int max_policy_lag = 4;         // Unrolls older than this many versions are dropped.
+  int max_policy_lag = 4;         // Unrolls older than this many versions are dropped (on-policy only).
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
   int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
   std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).

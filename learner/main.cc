@@ -90,7 +90,8 @@ ABSL_FLAG(double, hidden_gain, kDefaults.ppo.hidden_gain, "orthogonal init gain 
 ABSL_FLAG(double, value_clip, kDefaults.ppo.value_clip,
           "clip value predictions to this distance from the iteration's start (normalised; 0: off)");
 ABSL_FLAG(double, huber_delta, kDefaults.ppo.huber_delta, "Huber value loss delta (0: MSE)");
-ABSL_FLAG(int, max_policy_lag, kDefaults.max_policy_lag, "drop unrolls older than this many policy versions");
+ABSL_FLAG(int, max_policy_lag, kDefaults.max_policy_lag,
+          "mappo: drop unrolls older than this many policy versions (maddpg keeps every one)");
 ABSL_FLAG(int, queue_capacity, kDefaults.queue_capacity,
           "unrolls waiting for training before PushUnrolls blocks the actors");
 ABSL_FLAG(int, checkpoint_every, kDefaults.checkpoint_every, "iterations between checkpoints (0: not by iterations)");

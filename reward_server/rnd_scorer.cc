@@ -20,6 +20,7 @@ namespace imca::reward {
 namespace {
 
 constexpr char kMagic[] = "IMCA-RND-2";  // 2: moments as one [2 dim + 1] tensor each.
+constexpr char kLegacyMagic[] = "IMCA-RND-1";  // Still read (Load).
 constexpr double kEps = 1e-8;
 
 std::vector<int64_t> Sizes(int64_t in, const RndConfig& config) {
@@ -30,7 +31,7 @@ std::vector<int64_t> Sizes(int64_t in, const RndConfig& config) {
 }
 
 // A snapshot's moments; throws (LoadArchive's DATA_LOSS) if they are bad.
-nn::RunningMoments ReadMoments(const torch::Tensor& t, int64_t dim, const std::string& name) {
+nn::RunningMoments MomentsFromTensor(const torch::Tensor& t, int64_t dim, const std::string& name) {
   absl::StatusOr<nn::RunningMoments> moments = nn::RunningMoments::FromTensor(t, dim, name);
   if (!moments.ok()) throw std::runtime_error(std::string(moments.status().message()));
   return *std::move(moments);
@@ -132,11 +133,24 @@ struct Model {
     target->load(t);
     predictor->load(p);
     optimizer->load(o);
+    obs = ReadMoments(archive, prefix + "obs", obs.dim());
+    ret = ReadMoments(archive, prefix + "ret", 1);
+  }
+
+  // "<name>_moments" ([2 dim + 1], IMCA-RND-2), or an IMCA-RND-1
+  // snapshot's "<name>_mean", "<name>_var", "<name>_count".
+  static nn::RunningMoments ReadMoments(torch::serialize::InputArchive& archive, const std::string& name,
+                                        int64_t dim) {
     torch::Tensor moments;
-    archive.read(prefix + "obs_moments", moments);
-    obs = ReadMoments(moments, obs.dim(), prefix + "obs_moments");
-    archive.read(prefix + "ret_moments", moments);
-    ret = ReadMoments(moments, 1, prefix + "ret_moments");
+    if (!archive.try_read(name + "_moments", moments)) {
+      torch::Tensor mean, var, count;
+      archive.read(name + "_mean", mean);
+      archive.read(name + "_var", var);
+      archive.read(name + "_count", count);
+      moments = torch::cat({mean.to(torch::kFloat64).reshape({-1}), var.to(torch::kFloat64).reshape({-1}),
+                            count.to(torch::kFloat64).reshape({1})});
+    }
+    return MomentsFromTensor(moments, dim, name + "_moments");
   }
 
   nn::Mlp target;
@@ -354,9 +368,20 @@ absl::Status RndNovelty::Load(const std::string& path) {
   absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
-  return nn::LoadModels<Model>(
-      path, impl.tag, &impl.joint, &impl.local, [&] { return Model(impl.encoder.joint_dim(), impl.rnd, impl.config.seed); },
-      [&] { return Model(impl.encoder.local_dim(with_id), impl.rnd, impl.config.seed); }, "updates", &impl.updates);
+  const auto load = [&](const std::string& tag) {
+    return nn::LoadModels<Model>(
+        path, tag, &impl.joint, &impl.local,
+        [&] { return Model(impl.encoder.joint_dim(), impl.rnd, impl.config.seed); },
+        [&] { return Model(impl.encoder.local_dim(with_id), impl.rnd, impl.config.seed); }, "updates",
+        &impl.updates);
+  };
+  absl::Status loaded = load(impl.tag);
+  // A snapshot of a run started before this version resumes too.
+  if (absl::IsFailedPrecondition(loaded)) {
+    const absl::Status legacy = load(kLegacyMagic + impl.tag.substr(std::string(kMagic).size()));
+    if (!absl::IsFailedPrecondition(legacy)) loaded = legacy;
+  }
+  return loaded;
 }
 
 absl::Status RndNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,

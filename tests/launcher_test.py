@@ -77,7 +77,6 @@ class LauncherDefaultsTest(unittest.TestCase):
         flags = launch.learner_option_flags(args)
         self.assertIn("--algo=maddpg", flags)
         self.assertIn("--updates_per_step=0.02", flags)
-        self.assertIn(f"--max_policy_lag={launch.MADDPG_MAX_POLICY_LAG}", flags)
         self.assertNotIn("--synchronous=true", flags)
         # Asked for, synchronous collection is kept.
         self.assertTrue(launch.parse_args(["--algo", "maddpg", "--sync", "true"]).sync)
@@ -111,6 +110,8 @@ class LauncherDefaultsTest(unittest.TestCase):
                 json.dump({"batch_steps": 2048, "unroll_length": 16, "sync": True, "separate_optimizers": True}, f)
             args = launch.parse_args(["--resume", run_dir])
             self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (True, True, 2048))
+            # A folder from before --algo trained MAPPO, whatever the command line says.
+            self.assertEqual(launch.parse_args(["--resume", run_dir, "--algo", "maddpg"]).algo, "mappo")
 
 
 class StepsToSuccessTest(unittest.TestCase):

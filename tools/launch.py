@@ -66,7 +66,7 @@ LEARNER_OPTIONS = [
     ("--max-grad-norm", "max_grad_norm", dict(type=float, help="gradient-norm clip")),
     ("--epochs", "epochs", dict(type=positive_int, help="PPO epochs per iteration")),
     ("--minibatches", "minibatches", dict(type=positive_int, help="PPO minibatches per epoch")),
-    ("--max-policy-lag", "max_policy_lag", dict(type=int, help="drop unrolls older than this many versions")),
+    ("--max-policy-lag", "max_policy_lag", dict(type=int, help="mappo: drop unrolls older than this many versions")),
     ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of each learner pass")),
     ("--gamma", "gamma", dict(type=float, help="extrinsic discount (MADDPG: its only one)")),
     ("--updates-per-step", "updates_per_step",
@@ -100,11 +100,6 @@ V1_DEFAULTS = {"sync": False, "batch_steps": 8192, "unroll_length": 64, "separat
 GENERAL_DEFAULTS = {"separate_optimizers": False, "batch_steps": 1024, "unroll_length": 16, "lr": 5e-4}
 SCENARIO_DEFAULTS = {"coop_nav": {"separate_optimizers": True, "batch_steps": 2048, "unroll_length": 32,
                                   "lr": 1e-3}}
-
-
-# MADDPG's replay takes unrolls acted by any older policy version, so its
-# learner is started with a lag cap that never drops one.
-MADDPG_MAX_POLICY_LAG = 1_000_000
 
 
 def scenario_default(scenario, key):
@@ -186,6 +181,7 @@ def parse_args(argv):
         for key, old in V1_DEFAULTS.items():
             if saved.get(key) is None:
                 saved[key] = old
+        saved.setdefault("algo", "mappo")  # Runs from before --algo trained MAPPO.
         for key, value in saved.items():
             if key not in ("steps", "out", "resume", "reward_port", "learner_port") and hasattr(args, key):
                 setattr(args, key, value)
@@ -200,8 +196,6 @@ def parse_args(argv):
     if args.algo == "maddpg":
         if args.reward == "edti":
             p.error("argument --algo: edti's value of interaction is a MAPPO value head; use --algo mappo")
-        if args.max_policy_lag is None:
-            args.max_policy_lag = MADDPG_MAX_POLICY_LAG
     per_agent = args.reward in PER_AGENT_REWARDS
     if args.credit is None:
         args.credit = "independent" if per_agent else "imca"

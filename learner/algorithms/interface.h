@@ -63,6 +63,11 @@ class Algorithm {
   // features (the learner's memory cap, --max_batch_mb).
   virtual int64_t IterationBytes(int64_t steps) const = 0;
 
+  // Off-policy: learns from unrolls of any policy version (the learner
+  // drops none as stale), and trains as it adds (so an iteration cut short
+  // by a stop has trained and is counted and published).
+  virtual bool off_policy() const { return false; }
+
   // Takes one unroll of the current iteration. Errors: INTERNAL (torch).
   virtual absl::Status Add(const FeaturisedUnroll& unroll) = 0;
   // Ends the iteration and returns what it did. Errors, each leaving the

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "common/featurizer.h"
 #include "common/status_macros.h"
@@ -46,6 +47,12 @@ absl::Status ValidateConfig(const LearnerConfig& config) {
   return absl::OkStatus();
 }
 
+// One replay transition: two states, n actions, n rewards, done.
+int64_t ReplayTransitionBytes(const env::Scenario& scenario) {
+  return static_cast<int64_t>(sizeof(int32_t)) * (2 * scenario.state_size() + scenario.num_agents()) +
+         static_cast<int64_t>(sizeof(float)) * scenario.num_agents() + 1;
+}
+
 torch::Tensor FromFloats(const std::vector<float>& v, std::vector<int64_t> shape) {
   return torch::from_blob(const_cast<float*>(v.data()), shape, torch::kFloat32).clone();
 }
@@ -77,7 +84,7 @@ struct Maddpg::Impl {
         k(scenario->state_size()),
         A(scenario->num_actions()),
         D(featurizer.obs_dim()),
-        generator(at::detail::createCPUGenerator(nn::SubSeed(config.ppo.seed, 100))) {
+        generator(at::detail::createCPUGenerator(nn::SubSeed(config.ppo.seed, uint64_t{1} << 32))) {
     torch::set_num_threads(std::max(1, config.ppo.threads));
     nets = BuildNets();
   }
@@ -101,10 +108,11 @@ struct Maddpg::Impl {
     };
     std::vector<torch::Tensor> actor_params, critic_params;
     for (int i = 0; i < networks(); ++i) {
-      nets.actors.push_back(mlp(D, A, 0.01, 1 + i));
-      nets.critics.push_back(mlp(critic_in(), 1, 1.0, 1000 + i));
-      nets.target_actors.push_back(mlp(D, A, 0.01, 1 + i));
-      nets.target_critics.push_back(mlp(critic_in(), 1, 1.0, 1000 + i));
+      // Streams 2i + 1 (actor i) and 2i + 2 (critic i); targets are copied.
+      nets.actors.push_back(mlp(D, A, 0.01, 2 * i + 1));
+      nets.critics.push_back(mlp(critic_in(), 1, 1.0, 2 * i + 2));
+      nets.target_actors.push_back(mlp(D, A, 0.01, 2 * i + 1));
+      nets.target_critics.push_back(mlp(critic_in(), 1, 1.0, 2 * i + 2));
       nn::SoftUpdate(*nets.target_actors.back(), *nets.actors.back(), 1.0);
       nn::SoftUpdate(*nets.target_critics.back(), *nets.critics.back(), 1.0);
       for (auto& p : nets.target_actors.back()->parameters()) p.set_requires_grad(false);
@@ -176,6 +184,13 @@ struct Maddpg::Impl {
   void Insert(const int32_t* state, const int32_t* next_state, const int32_t* actions, const float* rewards,
               bool done) {
     const int64_t slot = size < m.buffer_transitions ? size : head;
+    if (size == 0) {  // The whole replay at once: no growth by doubling.
+      states.reserve(m.buffer_transitions * k);
+      next_states.reserve(m.buffer_transitions * k);
+      actions_.reserve(m.buffer_transitions * n);
+      rewards_.reserve(m.buffer_transitions * n);
+      done_.reserve(m.buffer_transitions);
+    }
     if (size < m.buffer_transitions) {
       states.resize((size + 1) * k);
       next_states.resize((size + 1) * k);
@@ -215,6 +230,18 @@ struct Maddpg::Impl {
                   FromFloats(rewards, {B, n}), FromFloats(alive, {B, 1})};
   }
 
+  // Per-agent losses [n] -> one: their mean for shared networks, their sum
+  // for separate ones (each network then sees its own agent's loss).
+  torch::Tensor AgentsLoss(const torch::Tensor& per_agent) const {
+    return m.share_parameters ? per_agent.mean() : per_agent.sum();
+  }
+
+  static void SetRequiresGrad(std::vector<nn::Mlp>& nets, bool on) {
+    for (auto& net : nets) {
+      for (auto& p : net->parameters()) p.set_requires_grad(on);
+    }
+  }
+
   static double ClipEach(std::vector<nn::Mlp>& nets, double max_norm) {
     double total = 0;
     for (auto& net : nets) total += torch::nn::utils::clip_grad_norm_(net->parameters(), max_norm);
@@ -237,10 +264,11 @@ struct Maddpg::Impl {
     const int64_t B = s.obs.size(0);
     const torch::Tensor joint_obs = s.obs.reshape({B, n * D});
     const torch::Tensor y = Targets(s);
-    // Critic: mean over samples and agents of (Q_i - y_i)^2 (each separate
-    // critic's gradient is that of its own agent's mean, times 1/n).
+    // Critic: mean over samples of (Q_i - y_i)^2; one shared critic takes
+    // the mean over agents too, separate critics the sum, so that each gets
+    // its own agent's loss as in the reference (the clip then means the same).
     const torch::Tensor q = Q(nets.critics, joint_obs, Everyone(s.actions));
-    const torch::Tensor critic_loss = (q - y).pow(2).mean();
+    const torch::Tensor critic_loss = AgentsLoss((q - y).pow(2).mean(0));
     // Actor: agent i's own action the straight-through Gumbel sample of its
     // actor, the others' those of the replay (the reference code).
     const torch::Tensor logits = Logits(nets.actors, s.obs);
@@ -262,12 +290,16 @@ struct Maddpg::Impl {
     lap_optimizer += Lap(lap);
 
     // The actor's loss goes through the critic as it is now (after its step,
-    // as in the reference code); only the actors are stepped.
+    // as in the reference code); only the actors are stepped, so the
+    // critics' parameters need no gradient on this pass.
+    SetRequiresGrad(nets.critics, false);
     const torch::Tensor q_actor = Q(nets.critics, joint_obs, joint);
-    const torch::Tensor actor_loss = -q_actor.mean() + m.policy_reg * logits.pow(2).mean();
+    const torch::Tensor actor_loss =
+        AgentsLoss(-q_actor.mean(0) + m.policy_reg * logits.pow(2).mean(2).mean(0));
     lap_forward += Lap(lap);
     nets.actor_optimizer->zero_grad();
     actor_loss.backward();
+    SetRequiresGrad(nets.critics, true);
     lap_backward += Lap(lap);
     const bool actor_ok = std::isfinite(actor_loss.item<float>()) && FiniteGradients(nets.actors);
     if (actor_ok) {
@@ -318,6 +350,14 @@ struct Maddpg::Impl {
 
 absl::StatusOr<std::unique_ptr<Maddpg>> Maddpg::Create(const env::Scenario* scenario, const LearnerConfig& config) {
   IMCA_RETURN_IF_ERROR(ValidateConfig(config));
+  const int64_t per_transition = ReplayTransitionBytes(*scenario);
+  if (config.maddpg.buffer_transitions > config.max_batch_bytes / per_transition) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "maddpg.buffer_transitions (--maddpg_buffer): a replay of %d transitions needs %.0f MB here, over the "
+        "learner's memory cap of %.0f MB (--max_batch_mb)",
+        config.maddpg.buffer_transitions, config.maddpg.buffer_transitions * (per_transition / 1e6),
+        config.max_batch_bytes / 1e6));
+  }
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Impl> impl,
                         nn::TorchCall("maddpg networks", [&]() -> absl::StatusOr<std::unique_ptr<Impl>> {
                           return std::make_unique<Impl>(scenario, config);
@@ -343,8 +383,7 @@ int64_t Maddpg::IterationBytes(int64_t steps) const {
 }
 
 int64_t Maddpg::ReplayBytes() const {
-  return impl_->m.buffer_transitions *
-         (static_cast<int64_t>(sizeof(int32_t)) * (2 * impl_->k + impl_->n) + int64_t{4} * impl_->n + 1);
+  return impl_->m.buffer_transitions * ReplayTransitionBytes(*impl_->scenario);
 }
 int64_t Maddpg::replay_size() const { return impl_->size; }
 int64_t Maddpg::updates() const { return impl_->updates; }

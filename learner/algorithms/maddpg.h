@@ -34,10 +34,11 @@ namespace imca::learner {
 class Maddpg final : public Algorithm {
  public:
   // `scenario` must outlive it. Errors: INVALID_ARGUMENT naming a bad
-  // config field.
+  // config field, or a replay (ReplayBytes) over config.max_batch_bytes.
   static absl::StatusOr<std::unique_ptr<Maddpg>> Create(const env::Scenario* scenario, const LearnerConfig& config);
   ~Maddpg() override;
 
+  bool off_policy() const override { return true; }
   FeaturisedUnroll Featurise(v1::Unroll unroll) const override;
   // The queued unrolls' states and rewards (the replay is bounded by
   // buffer_transitions instead, see ReplayBytes).

@@ -159,6 +159,11 @@ TEST_F(MaddpgTest, RejectsBadConfigsNamingTheFlag) {
   bad.maddpg.updates_per_step = 0;
   EXPECT_EQ(Maddpg::Create(scenario_.get(), bad).status().code(), absl::StatusCode::kInvalidArgument);
   bad = config_;
+  bad.maddpg.buffer_transitions = 1000000;
+  bad.maddpg.learning_starts = 1000;
+  bad.max_batch_bytes = 1000000;  // 1 MB: far below a million transitions.
+  EXPECT_THAT(Maddpg::Create(scenario_.get(), bad).status().message(), HasSubstr("--max_batch_mb"));
+  bad = config_;
   bad.maddpg.learning_starts = 1000;  // Over the buffer.
   EXPECT_THAT(Maddpg::Create(scenario_.get(), bad).status().message(), HasSubstr("--maddpg_learning_starts"));
 }
@@ -238,7 +243,46 @@ TEST_F(MaddpgTest, LearnerTrainsMaddpgAndPublishesReluPolicies) {
   while (std::getline(metrics, row)) last = row;
   EXPECT_THAT(header, HasSubstr("updates,replay_size"));
   EXPECT_THAT(last, HasSubstr(",1024,"));
+  // A restarted learner resumes MADDPG from the final checkpoint: same
+  // version, steps and published policy (its replay refills).
+  auto restarted = Learner::Create(scenario_.get(), config);
+  ASSERT_TRUE(restarted.ok()) << restarted.status();
+  ASSERT_TRUE((*restarted)->Restore(config.run_dir + "/checkpoints").ok());
+  EXPECT_EQ((*restarted)->Status().env_steps(), 1024);
+  EXPECT_EQ((*restarted)->CurrentPolicy()->SerializeAsString(), (*learner)->CurrentPolicy()->SerializeAsString());
+  // A MAPPO learner refuses MADDPG's checkpoint rather than misreading it.
+  LearnerConfig mappo = config;
+  mappo.algo = Algo::kMappo;
+  auto other = Learner::Create(scenario_.get(), mappo);
+  ASSERT_TRUE(other.ok()) << other.status();
+  EXPECT_FALSE((*other)->Restore(config.run_dir + "/checkpoints").ok());
   std::filesystem::remove_all(config.run_dir);
+}
+
+TEST_F(MaddpgTest, AStopMidIterationCountsAndPublishesWhatWasTrained) {
+  // MADDPG trains as it adds: a stop after two of an iteration's eight
+  // unrolls counts those 256 steps and publishes the weights they trained.
+  LearnerConfig config = config_;
+  config.maddpg.buffer_transitions = 4096;
+  config.maddpg.learning_starts = 64;
+  config.batch_steps = 1024;
+  config.max_policy_lag = 0;  // On-policy only: old unrolls are not dropped.
+  auto learner = Learner::Create(scenario_.get(), config);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
+  for (int i = 0; i < 2; ++i) {
+    v1::Unroll u = testing::RandomUnroll(*scenario_, 16, 8, 30 + i);
+    u.set_policy_version(0);
+    ASSERT_TRUE(l->Push(std::move(u)).ok());
+  }
+  // Once the training thread has taken both (queue empty), the second is
+  // added before it looks for a third and finds the stop.
+  while (l->Status().queue_depth() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  l->Stop();
+  trainer.join();
+  EXPECT_EQ(l->Status().env_steps(), 256);
+  EXPECT_EQ(l->Status().policy_version(), 1);
 }
 
 }  // namespace
