@@ -9,6 +9,7 @@
 #include "absl/status/statusor.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
+#include "learner/ppo_trainer.h"
 
 namespace imca::learner {
 
@@ -29,27 +30,20 @@ struct FeaturisedUnroll {
   double featurise_seconds = 0;
 };
 
-// What one iteration did: the metrics row's algorithm columns. Fields an
+// What one iteration did: the metrics row's algorithm columns. The training
+// statistics are PpoStats' (learner/ppo_trainer.h), which MADDPG fills as
+// its own: policy_loss -mean Q_i (+ the logit regulariser), value_loss the
+// critic's TD error^2, entropy of its actors, minibatches_skipped its skipped
+// steps; approx_kl, clip_fraction and behaviour_kl are PPO's only. Fields an
 // algorithm has no notion of stay 0.
-struct IterationStats {
-  double policy_loss = 0;    // PPO surrogate; MADDPG -mean Q_i (+ logit regulariser).
-  double value_loss = 0;     // PPO value loss; MADDPG critic TD error^2.
-  double entropy = 0;        // Of the policy on the trained samples.
-  double approx_kl = 0;      // PPO only.
-  double clip_fraction = 0;  // PPO only.
-  double behaviour_kl = 0;   // PPO only.
-  double grad_norm = 0;
+struct IterationStats : PpoStats {
   int64_t updates = 0;       // Gradient steps taken (PPO: minibatch steps).
   int64_t replay_size = 0;   // Transitions held (off-policy only).
   double voi_reward = 0;     // EDTI's value-of-interaction reward (MAPPO --edti).
-  // Wall seconds: adding the iteration's unrolls (values, GAE and copying for
-  // PPO; inserting and the due updates for MADDPG), then Train's phases.
+  // Wall seconds of adding the iteration's unrolls: values, GAE and copying
+  // for PPO; MADDPG's inserting counts as copy (its due updates as Train's
+  // forward, backward and optimizer phases).
   double seconds_values = 0, seconds_gae = 0, seconds_copy = 0;
-  double seconds_prepare = 0, seconds_forward = 0, seconds_backward = 0, seconds_optimizer = 0;
-  // Steps (minibatches) skipped because their loss or gradient was not
-  // finite, and why the first failed.
-  int64_t minibatches_skipped = 0;
-  std::string skip_reason;
 };
 
 // Not thread-safe except where noted: the learner's training thread owns it.

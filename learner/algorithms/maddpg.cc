@@ -242,18 +242,17 @@ struct Maddpg::Impl {
     }
   }
 
-  static double ClipEach(std::vector<nn::Mlp>& nets, double max_norm) {
+  // Clips each network's gradient norm at max_norm and steps `optimizer`,
+  // unless the loss or a norm is not finite (clip_grad_norm_'s norm is then
+  // not finite either, so it is the check); adds the mean norm to *grad.
+  // Returns whether it stepped.
+  bool ClipAndStep(const torch::Tensor& loss, std::vector<nn::Mlp>& nets, torch::optim::Adam& optimizer,
+                   double* grad) const {
     double total = 0;
-    for (auto& net : nets) total += torch::nn::utils::clip_grad_norm_(net->parameters(), max_norm);
-    return total / nets.size();
-  }
-
-  static bool FiniteGradients(std::vector<nn::Mlp>& nets) {
-    for (auto& net : nets) {
-      for (const auto& p : net->parameters()) {
-        if (p.grad().defined() && !torch::isfinite(p.grad()).all().item<bool>()) return false;
-      }
-    }
+    for (auto& net : nets) total += torch::nn::utils::clip_grad_norm_(net->parameters(), m.max_grad_norm);
+    if (!std::isfinite(loss.item<double>()) || !std::isfinite(total)) return false;
+    optimizer.step();
+    *grad += total / nets.size();
     return true;
   }
 
@@ -276,18 +275,14 @@ struct Maddpg::Impl {
     const torch::Tensor own = torch::eye(n).view({1, n, n, 1});                         // [1, i, slot, 1]
     const torch::Tensor joint =
         (own * sampled.unsqueeze(1) + (1 - own) * s.actions.unsqueeze(1)).reshape({B, n, n * A});
-    lap_forward += Lap(lap);
+    sums.seconds_forward += Lap(lap);
 
     nets.critic_optimizer->zero_grad();
     critic_loss.backward();
-    lap_backward += Lap(lap);
-    const bool critic_ok = std::isfinite(critic_loss.item<float>()) && FiniteGradients(nets.critics);
+    sums.seconds_backward += Lap(lap);
     double grad = 0;
-    if (critic_ok) {
-      grad += ClipEach(nets.critics, m.max_grad_norm);
-      nets.critic_optimizer->step();
-    }
-    lap_optimizer += Lap(lap);
+    const bool critic_ok = ClipAndStep(critic_loss, nets.critics, *nets.critic_optimizer, &grad);
+    sums.seconds_optimizer += Lap(lap);
 
     // The actor's loss goes through the critic as it is now (after its step,
     // as in the reference code); only the actors are stepped, so the
@@ -296,23 +291,19 @@ struct Maddpg::Impl {
     const torch::Tensor q_actor = Q(nets.critics, joint_obs, joint);
     const torch::Tensor actor_loss =
         AgentsLoss(-q_actor.mean(0) + m.policy_reg * logits.pow(2).mean(2).mean(0));
-    lap_forward += Lap(lap);
+    sums.seconds_forward += Lap(lap);
     nets.actor_optimizer->zero_grad();
     actor_loss.backward();
     SetRequiresGrad(nets.critics, true);
-    lap_backward += Lap(lap);
-    const bool actor_ok = std::isfinite(actor_loss.item<float>()) && FiniteGradients(nets.actors);
-    if (actor_ok) {
-      grad += ClipEach(nets.actors, m.max_grad_norm);
-      nets.actor_optimizer->step();
-    }
+    sums.seconds_backward += Lap(lap);
+    const bool actor_ok = ClipAndStep(actor_loss, nets.actors, *nets.actor_optimizer, &grad);
     for (int i = 0; i < networks(); ++i) {
       nn::SoftUpdate(*nets.target_actors[i], *nets.actors[i], m.tau);
       nn::SoftUpdate(*nets.target_critics[i], *nets.critics[i], m.tau);
     }
-    lap_optimizer += Lap(lap);
-    if (!critic_ok || !actor_ok) {
-      if (skipped++ == 0) skip_reason = !critic_ok ? "critic loss or gradient not finite" : "actor loss or gradient not finite";
+    sums.seconds_optimizer += Lap(lap);
+    if ((!critic_ok || !actor_ok) && sums.minibatches_skipped++ == 0) {
+      sums.skip_reason = !critic_ok ? "critic loss or gradient not finite" : "actor loss or gradient not finite";
     }
     torch::NoGradGuard no_grad;
     const torch::Tensor log_p = torch::log_softmax(logits.detach(), -1);
@@ -322,7 +313,7 @@ struct Maddpg::Impl {
     sums.grad_norm += grad / 2;
     ++sums.updates;
     ++updates;
-    lap_optimizer += Lap(lap);
+    sums.seconds_optimizer += Lap(lap);
   }
 
   const env::Scenario* scenario;
@@ -341,11 +332,9 @@ struct Maddpg::Impl {
   // learning_starts; one update is taken for every whole one.
   double credit = 0;
   int64_t updates = 0;
-  // The current iteration's sums (Train turns them into means).
+  // The current iteration's sums and timings (Train turns the losses,
+  // entropy and grad norm into means).
   IterationStats sums;
-  int64_t skipped = 0;
-  std::string skip_reason;
-  double lap_forward = 0, lap_backward = 0, lap_optimizer = 0;
 };
 
 absl::StatusOr<std::unique_ptr<Maddpg>> Maddpg::Create(const env::Scenario* scenario, const LearnerConfig& config) {
@@ -429,15 +418,7 @@ absl::StatusOr<IterationStats> Maddpg::Train() {
   stats.entropy /= u;
   stats.grad_norm /= u;
   stats.replay_size = s.size;
-  stats.seconds_forward = s.lap_forward;
-  stats.seconds_backward = s.lap_backward;
-  stats.seconds_optimizer = s.lap_optimizer;
-  stats.minibatches_skipped = s.skipped;
-  stats.skip_reason = s.skip_reason;
   s.sums = IterationStats();
-  s.skipped = 0;
-  s.skip_reason.clear();
-  s.lap_forward = s.lap_backward = s.lap_optimizer = 0;
   return stats;
 }
 

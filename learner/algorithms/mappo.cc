@@ -193,21 +193,8 @@ absl::StatusOr<IterationStats> Mappo::Train() {
   absl::StatusOr<PpoStats> trained = trainer_->Train(batch_);
   batch_.Clear();
   if (!trained.ok()) return trained.status();
-  const PpoStats& p = *trained;
-  stats.policy_loss = p.policy_loss;
-  stats.value_loss = p.value_loss;
-  stats.entropy = p.entropy;
-  stats.approx_kl = p.approx_kl;
-  stats.clip_fraction = p.clip_fraction;
-  stats.behaviour_kl = p.behaviour_kl;
-  stats.grad_norm = p.grad_norm;
-  stats.updates = int64_t{config_.ppo.epochs} * config_.ppo.minibatches - p.minibatches_skipped;
-  stats.seconds_prepare = p.seconds_prepare;
-  stats.seconds_forward = p.seconds_forward;
-  stats.seconds_backward = p.seconds_backward;
-  stats.seconds_optimizer = p.seconds_optimizer;
-  stats.minibatches_skipped = p.minibatches_skipped;
-  stats.skip_reason = p.skip_reason;
+  static_cast<PpoStats&>(stats) = *trained;
+  stats.updates = int64_t{config_.ppo.epochs} * config_.ppo.minibatches - stats.minibatches_skipped;
   return stats;
 }
 
