@@ -13,6 +13,7 @@
 #include "absl/strings/str_format.h"
 #include "common/atomic_file.h"
 #include "common/grpc_util.h"
+#include "common/transport.h"
 
 namespace imca::actor {
 namespace {
@@ -74,6 +75,18 @@ bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
     v1::Policy policy;
     const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
     if (!status.ok()) {
+      const absl::Status failed = FromGrpcStatus(status);
+      if (IsRefusal(failed)) {
+        policy_error_ = absl::Status(failed.code(), DescribeRpcFailure("learner", failed, config_.tls));
+        return false;
+      }
+      // Said once, then every 10 s: a wrong certificate must not look like
+      // a learner that is still starting.
+      if (const auto now = std::chrono::steady_clock::now(); now - policy_failure_logged_ > std::chrono::seconds(10)) {
+        policy_failure_logged_ = now;
+        std::fprintf(stderr, "%s: GetPolicy: %s; retrying\n", config_.actor_id.c_str(),
+                     DescribeRpcFailure("learner", failed, config_.tls).c_str());
+      }
       if (!retry || (until_newer && LearnerDone())) return false;
       backoff.Wait();
       continue;
@@ -347,11 +360,15 @@ absl::Status Actor::Run() {
       return status;
     } else if (absl::IsOutOfRange(status)) {
       break;  // The learner's budget is done.
+    } else if (IsRefusal(status)) {
+      // Retrying with the same credentials cannot help: one line, and stop.
+      WriteStatus("done", /*force=*/true);
+      return absl::Status(status.code(), DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls));
     } else {
       // Keep the unroll: score it again if it has no answer yet, resend it
       // if it has no ack.
       std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
-                   std::string(status.message()).c_str());
+                   DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls).c_str());
       WriteStatus("retrying", /*force=*/false);
       if (LearnerDone()) break;
       backoff.Wait();
@@ -375,7 +392,7 @@ absl::Status Actor::Run() {
   CloseStream();
   if (!config_.trace_file.empty()) WriteTrace();
   WriteStatus("done", /*force=*/true);
-  return absl::OkStatus();
+  return policy_error_;  // OK, unless a policy could not be had (e.g. credentials refused).
 }
 
 void Actor::WriteStatus(const char* state, bool force) {

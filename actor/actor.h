@@ -58,6 +58,9 @@ struct ActorConfig {
   //  "time": seconds since the epoch}.
   std::string status_file;
   std::chrono::milliseconds status_period{1000};
+  // The channels are TLS: a failed call that reads as a failed handshake is
+  // logged as one.
+  bool tls = false;
 };
 
 // Steps vectorised environments with a local copy of the newest policy, gets
@@ -129,6 +132,7 @@ class Actor {
   std::unique_ptr<v1::RewardService::Stub> reward_;
   std::optional<PolicyMlp> policy_;
   absl::Status policy_error_;
+  std::chrono::steady_clock::time_point policy_failure_logged_{};
   env::VecEnv envs_;
   env::VecEnv eval_envs_;
   Rng rng_;

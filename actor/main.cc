@@ -14,6 +14,7 @@
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
+#include "common/transport_flags.h"
 
 ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
 ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
@@ -85,10 +86,24 @@ int main(int argc, char** argv) {
     return fail("--envs * --unroll_length must be <= 65536");
   }
 
+  absl::StatusOr<TransportConfig> transport = ClientTransportFromFlags();
+  if (!transport.ok()) return fail(std::string(transport.status().message()));
+  config.tls = transport->client_tls();
+  auto learner = MakeChannel(absl::GetFlag(FLAGS_learner), *transport);
+  if (!learner.ok()) return fail(std::string(learner.status().message()));
+  auto reward_server = MakeChannel(absl::GetFlag(FLAGS_reward_server), *transport);
+  if (!reward_server.ok()) return fail(std::string(reward_server.status().message()));
+
   InstallShutdownSignalHandlers();
-  actor::Actor actor(scenario->get(), config, MakeChannel(absl::GetFlag(FLAGS_learner)),
-                     MakeChannel(absl::GetFlag(FLAGS_reward_server)));
+  std::fprintf(stderr, "%s: dialling the learner at %s and the reward server at %s (%s)\n", id.c_str(),
+               absl::GetFlag(FLAGS_learner).c_str(), absl::GetFlag(FLAGS_reward_server).c_str(),
+               TransportSummary(*transport).c_str());
+  actor::Actor actor(scenario->get(), config, *std::move(learner), *std::move(reward_server));
   const absl::Status status = actor.Run();
+  if (IsRefusal(status)) {
+    fail(std::string(status.message()));
+    return kExitRefused;  // A supervisor must not restart it: the same credentials would be refused again.
+  }
   if (!status.ok()) return fail(std::string(status.message()));
   std::fprintf(stderr, "%s: stopped after %lld unrolls\n", id.c_str(),
                static_cast<long long>(actor.unrolls_pushed()));

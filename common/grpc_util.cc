@@ -42,16 +42,24 @@ void InstallShutdownSignalHandlers() {
 bool ShutdownRequested() { return g_shutdown.load(); }
 void RequestShutdown() { g_shutdown.store(true); }
 
-absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(
-    const std::string& listen, const std::vector<grpc::Service*>& services, int* bound_port) {
+absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(const std::string& listen,
+                                                          const std::vector<grpc::Service*>& services,
+                                                          int* bound_port, const ServerOptions& options) {
+  if (absl::Status valid = ValidateServerTransport(options.transport); !valid.ok()) return valid;
+  if (options.max_receive_bytes < 1) return absl::InvalidArgumentError("--max_receive_mb must be >= 1");
+  absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = MakeServerCredentials(options.transport);
+  if (!credentials.ok()) return credentials.status();
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), bound_port);
-  builder.SetMaxReceiveMessageSize(kMaxMessageBytes);
+  builder.AddListeningPort(listen, *credentials, bound_port);
+  builder.SetMaxReceiveMessageSize(options.max_receive_bytes);
   builder.SetMaxSendMessageSize(kMaxMessageBytes);
   // Without this gRPC may reuse a port another process holds (SO_REUSEPORT).
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  // One connection cannot hold more calls than this at once (an actor holds
+  // one stream and one unary call).
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, kMaxStreamsPerConnection);
   // Keepalive, set together with MakeChannel's: the server pings too (a
   // vanished client frees its stream within kKeepaliveTime +
   // kKeepaliveTimeout), and accepts the clients' pings at their interval,
@@ -72,7 +80,9 @@ absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(
   return server;
 }
 
-std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target) {
+namespace {
+
+grpc::ChannelArguments ChannelArgs() {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(kMaxMessageBytes);
   args.SetMaxSendMessageSize(kMaxMessageBytes);
@@ -86,7 +96,23 @@ std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target) {
   args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, kKeepaliveTimeoutMs);
   args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
-  return grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  return args;
+}
+
+}  // namespace
+
+std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target) {
+  return grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), ChannelArgs());
+}
+
+absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& target,
+                                                           const TransportConfig& transport) {
+  if (absl::Status valid = ValidateClientTransport(transport); !valid.ok()) return valid;
+  absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> credentials = MakeChannelCredentials(transport);
+  if (!credentials.ok()) return credentials.status();
+  grpc::ChannelArguments args = ChannelArgs();
+  if (!transport.tls_server_name.empty()) args.SetSslTargetNameOverride(transport.tls_server_name);
+  return grpc::CreateCustomChannel(target, *credentials, args);
 }
 
 Backoff::Backoff()

@@ -11,6 +11,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "common/transport.h"
 
 namespace imca {
 
@@ -24,16 +25,36 @@ void InstallShutdownSignalHandlers();
 bool ShutdownRequested();
 void RequestShutdown();
 
+// Largest message the servers and clients accept by default.
+inline constexpr int kMaxMessageBytes = 64 << 20;
+// HTTP/2 streams (calls) one client connection may hold open at once.
+inline constexpr int kMaxStreamsPerConnection = 100;
+
+// How a server listens beyond its address.
+struct ServerOptions {
+  TransportConfig transport;  // Default: plaintext, no token.
+  // Requests larger than this end with RESOURCE_EXHAUSTED before any handler
+  // runs.
+  int max_receive_bytes = kMaxMessageBytes;
+};
+
 // Builds and starts a gRPC server on `listen` ("host:port"; port 0 picks a
 // free one) with `services`, grpc.health.v1 health checking and server
-// reflection. Sets *bound_port. Errors: UNAVAILABLE naming the address when it
-// cannot be bound (e.g. the port is in use).
-absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(
-    const std::string& listen, const std::vector<grpc::Service*>& services, int* bound_port);
+// reflection, secured as `options.transport` says. Sets *bound_port. Errors:
+// INVALID_ARGUMENT naming the flag of a bad transport configuration or
+// unreadable file; UNAVAILABLE naming the address when it cannot be bound
+// (e.g. the port is in use).
+absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(const std::string& listen,
+                                                          const std::vector<grpc::Service*>& services,
+                                                          int* bound_port, const ServerOptions& options = {});
 
-// A client channel with keepalive (kKeepaliveTimeMs) and message limits that
-// fit the largest unrolls.
+// A plaintext client channel with keepalive (kKeepaliveTimeMs) and message
+// limits that fit the largest unrolls.
 std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target);
+// The same, secured as `transport` says (TLS, client certificate, token).
+// Errors: INVALID_ARGUMENT naming the flag.
+absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& target,
+                                                           const TransportConfig& transport);
 
 // Deadline `timeout` from now, for ClientContext::set_deadline.
 inline std::chrono::system_clock::time_point DeadlineIn(std::chrono::milliseconds timeout) {
@@ -55,9 +76,6 @@ class Backoff {
   int attempt_ = 0;
   uint64_t state_;
 };
-
-// Largest message the servers and clients accept.
-inline constexpr int kMaxMessageBytes = 64 << 20;
 
 // Keepalive of every channel and server (both sides set together): a ping
 // after this much silence, and the connection dropped if it is not answered

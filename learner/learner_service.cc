@@ -1,7 +1,11 @@
 #include "learner/learner_service.h"
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include <cstdio>
+
 #include "common/grpc_util.h"
+#include "common/transport.h"
 
 namespace imca::learner {
 namespace {
@@ -34,8 +38,22 @@ v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version
 grpc::Status LearnerServiceImpl::PushUnrolls(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) {
+  struct StreamSlot {
+    std::atomic<int>* streams;
+    ~StreamSlot() { streams->fetch_sub(1); }
+  } slot{&streams_};
+  if (streams_.fetch_add(1) >= max_streams_) {
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        absl::StrCat("the learner serves at most ", max_streams_, " unroll streams at once (--max_streams)"));
+  }
   v1::PushUnrollsRequest request;
+  bool first = true;
   while (stream->Read(&request)) {
+    if (first) {
+      first = false;
+      std::fprintf(stderr, "learner: unroll stream from %s (%s, %s)\n", absl::CHexEscape(request.unroll().actor_id().substr(0, 256)).c_str(),
+                   PeerIdentity(*context).c_str(), context->peer().c_str());
+    }
     const absl::Status status =
         learner_->Push(std::move(*request.mutable_unroll()), [context] { return context->IsCancelled(); });
     // Ends the stream: the learner stops, or its budget is done, or the actor left.

@@ -1,6 +1,8 @@
 #ifndef IMCA_LEARNER_LEARNER_SERVICE_H_
 #define IMCA_LEARNER_LEARNER_SERVICE_H_
 
+#include <atomic>
+
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "learner/learner.h"
 
@@ -12,10 +14,18 @@ namespace imca::learner {
 v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version);
 
 // The gRPC face of a Learner (sync API: each PushUnrolls stream holds one
-// server thread, which is what gives back-pressure). Thread-safe.
+// server thread, which is what gives back-pressure). At most `max_streams`
+// PushUnrolls streams are served at once; one more ends at once with
+// RESOURCE_EXHAUSTED (an actor retries it with backoff), so a client that
+// opens streams in a loop cannot take every thread. Each stream's first
+// unroll logs its actor id and the peer's identity (docs/security.md).
+// Thread-safe.
 class LearnerServiceImpl final : public v1::LearnerService::Service {
  public:
-  explicit LearnerServiceImpl(Learner* learner) : learner_(learner) {}
+  static constexpr int kDefaultMaxStreams = 256;
+
+  explicit LearnerServiceImpl(Learner* learner, int max_streams = kDefaultMaxStreams)
+      : learner_(learner), max_streams_(max_streams) {}
 
   grpc::Status PushUnrolls(
       grpc::ServerContext* context,
@@ -27,6 +37,8 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
 
  private:
   Learner* learner_;
+  const int max_streams_;
+  std::atomic<int> streams_{0};
 };
 
 }  // namespace imca::learner

@@ -13,6 +13,7 @@
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
+#include "common/transport_flags.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 
@@ -103,6 +104,8 @@ ABSL_FLAG(bool, concurrent_critic, kDefaults.ppo.concurrent_critic,
           "run each minibatch's critic pass on a second thread, concurrently with the actor's (same result)");
 ABSL_FLAG(int64_t, max_batch_mb, 8192,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
+ABSL_FLAG(int, max_streams, imca::learner::LearnerServiceImpl::kDefaultMaxStreams,
+          "unroll streams served at once (one per actor); more end with RESOURCE_EXHAUSTED and retry");
 ABSL_FLAG(double, linger_seconds, 2,
           "after the budget, keep serving this long so that actors in backoff learn it is done");
 ABSL_FLAG(std::string, trained_log, "",
@@ -206,6 +209,10 @@ int main(int argc, char** argv) {
     return Fail("--max_batch_mb must be in [1, 2^30]");
   }
   config.max_batch_bytes = absl::GetFlag(FLAGS_max_batch_mb) * 1000 * 1000;
+  absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
+  if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
+  const int max_streams = absl::GetFlag(FLAGS_max_streams);
+  if (max_streams < 1) return Fail("--max_streams must be >= 1");
   auto learner = learner::Learner::Create(scenario->get(), config);
   if (!learner.ok()) return Fail(std::string(learner.status().message()));
   std::string resume = absl::GetFlag(FLAGS_resume);
@@ -228,15 +235,19 @@ int main(int argc, char** argv) {
                  static_cast<long long>((*learner)->Status().policy_version()));
   }
 
-  learner::LearnerServiceImpl service(learner->get());
+  learner::LearnerServiceImpl service(learner->get(), max_streams);
   InstallShutdownSignalHandlers();
   int port = 0;
-  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port);
-  if (!server.ok()) return Fail(absl::StrCat("--listen: ", server.status().message()));
+  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);
+  if (!server.ok()) {
+    return Fail(absl::IsInvalidArgument(server.status()) ? std::string(server.status().message())
+                                                         : absl::StrCat("--listen: ", server.status().message()));
+  }
   if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
     std::ofstream(port_file) << port << "\n";
   }
-  std::fprintf(stderr, "learner: serving on port %d\n", port);
+  std::fprintf(stderr, "learner: serving on port %d (%s)\n", port,
+               TransportSummary(server_options->transport).c_str());
 
   // Signals only set a flag; this watcher turns it into Learner::Stop().
   // It also writes the status file: from this thread, so that a wedged

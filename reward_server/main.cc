@@ -13,6 +13,7 @@
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/scenario_flags.h"
+#include "common/transport_flags.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 
@@ -42,6 +43,10 @@ ABSL_FLAG(int, snapshot_every, 30,
 ABSL_FLAG(bool, journal_fsync, false,
           "count kinds: fdatasync the journal before each Score answer (survives a machine crash, not only a "
           "killed process; docs/reliability.md)");
+ABSL_FLAG(int, max_inflight, imca::reward::ServiceLimits{}.max_inflight,
+          "Score calls served at once; more end with RESOURCE_EXHAUSTED (the actor retries)");
+ABSL_FLAG(int, max_inflight_per_actor, imca::reward::ServiceLimits{}.max_inflight_per_actor,
+          "Score calls of one actor id served at once, so that one flooding client cannot starve the rest");
 ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor)");
 
@@ -61,6 +66,8 @@ int main(int argc, char** argv) {
 
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
+  absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
+  if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
 
   reward::ScorerConfig config;
   auto credit = reward::ParseCredit(absl::GetFlag(FLAGS_credit));
@@ -103,17 +110,25 @@ int main(int argc, char** argv) {
     }
   }
 
-  reward::RewardServiceImpl service(scenario->get(), scorer.get(), kind, config, snapshot);
+  reward::ServiceLimits limits;
+  limits.max_inflight = absl::GetFlag(FLAGS_max_inflight);
+  limits.max_inflight_per_actor = absl::GetFlag(FLAGS_max_inflight_per_actor);
+  if (limits.max_inflight < 1) return Fail("--max_inflight must be >= 1");
+  if (limits.max_inflight_per_actor < 1) return Fail("--max_inflight_per_actor must be >= 1");
+  reward::RewardServiceImpl service(scenario->get(), scorer.get(), kind, config, snapshot, limits);
   InstallShutdownSignalHandlers();
   int port = 0;
-  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port);
-  if (!server.ok()) return Fail(absl::StrCat("--listen: ", server.status().message()));
+  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);
+  if (!server.ok()) {
+    return Fail(absl::IsInvalidArgument(server.status()) ? std::string(server.status().message())
+                                                         : absl::StrCat("--listen: ", server.status().message()));
+  }
   if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
     std::ofstream(port_file) << port << "\n";
   }
-  std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d\n",
-               std::string((*scenario)->name()).c_str(), kind.c_str(),
-               absl::GetFlag(FLAGS_credit).c_str(), port);
+  std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d (%s)\n",
+               std::string((*scenario)->name()).c_str(), kind.c_str(), absl::GetFlag(FLAGS_credit).c_str(), port,
+               TransportSummary(server_options->transport).c_str());
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));
   const std::string status_file = absl::GetFlag(FLAGS_status_file);

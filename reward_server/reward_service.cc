@@ -4,24 +4,36 @@
 
 #include <functional>
 
+#include <cstdio>
+
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "common/grpc_util.h"
+#include "common/transport.h"
 #include "common/unroll_check.h"
 
 namespace imca::reward {
 
 RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scorer,
                                      std::string reward_kind, ScorerConfig config,
-                                     std::string snapshot_path)
+                                     std::string snapshot_path, ServiceLimits limits)
     : scenario_(scenario),
       scorer_(scorer),
       reward_kind_(std::move(reward_kind)),
       config_(config),
-      snapshot_path_(std::move(snapshot_path)) {}
+      snapshot_path_(std::move(snapshot_path)),
+      inflight_(limits.max_inflight, limits.max_inflight_per_actor) {}
 
-grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreRequest* request,
+grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                                       v1::ScoreResponse* response) {
   if (!accepting_.load()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "reward server is shutting down");
+  absl::StatusOr<ConcurrencyLimiter::Slot> slot = inflight_.Acquire(request->unroll().actor_id());
+  if (!slot.ok()) {
+    ++requests_rejected_;
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        absl::StrCat("reward server busy: ", slot.status().message(),
+                                     " (--max_inflight, --max_inflight_per_actor); retry later"));
+  }
   if (!request->has_unroll()) {
     ++requests_rejected_;
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "unroll is missing");
@@ -69,6 +81,11 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext*, const v1::ScoreReque
   if (!dry_run && unroll.incarnation() != 0) {
     absl::MutexLock lock(&scored_mu_);
     auto [it, inserted] = last_scored_.try_emplace(unroll.actor_id(), unroll.incarnation(), unroll.sequence());
+    if (inserted) {
+      std::fprintf(stderr, "reward_server: first Score from %s (%s, %s)\n",
+                   absl::CHexEscape(unroll.actor_id()).c_str(), PeerIdentity(*context).c_str(),
+                   context->peer().c_str());
+    }
     if (!inserted && it->second.first == unroll.incarnation() && unroll.sequence() <= it->second.second) {
       dry_run = true;
       ++requests_repeated_;

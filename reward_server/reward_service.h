@@ -9,6 +9,7 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/container/flat_hash_map.h"
 #include "absl/synchronization/mutex.h"
+#include "common/admission.h"
 #include "common/env.h"
 #include "imca/v1/reward_service.grpc.pb.h"
 #include "reward_server/credit.h"
@@ -16,15 +17,26 @@
 
 namespace imca::reward {
 
+// How many Score calls run at once: in total, and of one actor id. A call
+// over either bound ends at once with RESOURCE_EXHAUSTED (an actor retries
+// it with backoff), so one client that floods the server cannot starve the
+// others. An honest actor has one call in flight, two while a timed-out
+// call still runs.
+struct ServiceLimits {
+  int max_inflight = 64;
+  int max_inflight_per_actor = 4;
+};
+
 // The gRPC face of a Scorer: validates each request completely (names the bad
 // field in INVALID_ARGUMENT) before the scorer sees it, so a rejected request
-// changes nothing. Thread-safe.
+// changes nothing. The first Score of each actor id logs it with the peer's
+// identity (docs/security.md). Thread-safe.
 class RewardServiceImpl final : public v1::RewardService::Service {
  public:
   // `scenario` and `scorer` must outlive the service. `snapshot_path` may be
   // empty (Snapshot then answers FAILED_PRECONDITION).
   RewardServiceImpl(const env::Scenario* scenario, Scorer* scorer, std::string reward_kind,
-                    ScorerConfig config, std::string snapshot_path);
+                    ScorerConfig config, std::string snapshot_path, ServiceLimits limits = {});
 
   grpc::Status Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                      v1::ScoreResponse* response) override;
@@ -45,6 +57,7 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   const std::string reward_kind_;
   const ScorerConfig config_;
   const std::string snapshot_path_;
+  ConcurrencyLimiter inflight_;
   std::atomic<bool> accepting_{true};
   std::atomic<int64_t> transitions_scored_{0};
   std::atomic<int64_t> requests_served_{0};

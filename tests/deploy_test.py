@@ -33,17 +33,21 @@ K8S_DIR = os.path.join(ROOT, "deploy", "k8s")
 BINARIES = ("reward_server", "learner", "actor")
 # common/scenario_flags.cc: every process must build the same scenario.
 SCENARIO_FLAGS = ("scenario", "map", "num_agents", "step_limit", "success_reward", "step_penalty", "view_radius")
+# common/transport_flags.cc: the flags that name secret files.
+TLS_FILE_FLAGS = ("tls_cert", "tls_key", "tls_ca", "token_file")
 
 
 class Service:
     """One process of a deployment: its binary, flags and volume mounts."""
 
-    def __init__(self, name, command, mounts, replicas=1):
+    def __init__(self, name, command, mounts, replicas=1, secrets=(), probes=()):
         self.name = name
         self.binary = os.path.basename(command[0])
         self.args = list(command[1:])
         self.mounts = mounts          # container paths of mounted volumes
         self.replicas = replicas
+        self.secrets = list(secrets)  # container paths (files or folders) holding secrets
+        self.probes = list(probes)    # probe commands (argv)
 
     def flag(self, name):
         values = [a.split("=", 1)[1] for a in self.args if a.startswith(f"--{name}=")]
@@ -65,7 +69,13 @@ def load_compose():
         command = shlex.split(command) if isinstance(command, str) else command
         mounts = [v.split(":")[1] for v in spec.get("volumes", [])]
         replicas = spec.get("deploy", {}).get("replicas", 1)
-        services[name] = Service(name, command, mounts, replicas)
+        secrets = []
+        for secret in spec.get("secrets", []):
+            source = secret if isinstance(secret, str) else secret["source"]
+            assert source in doc.get("secrets", {}), f"{name}: secret {source} is not defined"
+            target = secret if isinstance(secret, str) else secret.get("target", source)
+            secrets.append("/run/secrets/" + target)
+        services[name] = Service(name, command, mounts, replicas, secrets)
     return services
 
 
@@ -98,9 +108,13 @@ def k8s_services(docs):
     services = {}
     for doc, c in pod_templates(docs):
         command = c.get("command", []) + c.get("args", [])
+        volumes = {v["name"]: v for v in doc["spec"]["template"]["spec"].get("volumes", [])}
         mounts = [m["mountPath"] for m in c.get("volumeMounts", [])]
+        secrets = [m["mountPath"] for m in c.get("volumeMounts", []) if "secret" in volumes[m["name"]]]
+        probes = [c[p]["exec"]["command"] for p in ("readinessProbe", "livenessProbe") if "exec" in c.get(p, {})]
         replicas = doc["spec"].get("replicas", doc["spec"].get("parallelism", 1))
-        services[doc["metadata"]["name"]] = Service(doc["metadata"]["name"], command, mounts, replicas)
+        services[doc["metadata"]["name"]] = Service(doc["metadata"]["name"], command, mounts, replicas, secrets,
+                                                    probes)
     return services
 
 
@@ -131,6 +145,11 @@ class Deployment:
         self.tmp = tmp
         self.ports = {}
         self.procs = launch.Services(tmp)  # Logs in tmp/logs/<name>.log.
+        # The secrets an operator makes with tools/make_certs.sh (client
+        # "actor"), where the deployment mounts them.
+        folders = {os.path.dirname(s.flag(f)) for s in services.values() for f in TLS_FILE_FLAGS if s.flag(f)}
+        for folder in folders:
+            subprocess.run([os.path.join(ROOT, "tools", "make_certs.sh"), tmp + folder, "actor"], check=True)
 
     def local_args(self, service, steps):
         """The service's flags with cluster paths, addresses and budget made local."""
@@ -162,6 +181,20 @@ class Deployment:
         if service.flag("listen"):
             self.ports[binary] = self.procs.wait_port(name, proc, port_file, timeout=60)
         return proc
+
+    def probe(self, command):
+        """Runs a probe command (imca_health) as the kubelet would, made local."""
+        argv = [os.path.join(BIN, command[0])]
+        for arg in command[1:]:
+            name, _, value = arg[2:].partition("=")
+            if name == "target":
+                binary = next(b for b, s in self.by_binary.items()
+                              if s.flag("listen") and value.endswith(":" + s.flag("listen").rsplit(":", 1)[1]))
+                arg = f"--target=127.0.0.1:{self.ports[binary]}"
+            elif value.startswith("/"):
+                arg = f"--{name}={self.tmp}{value}"
+            argv.append(arg)
+        return subprocess.run(argv + ["--tls_server_name=localhost"], capture_output=True, text=True, timeout=30)
 
     def stop(self, name):
         """SIGTERM, then the exit code."""
@@ -196,6 +229,16 @@ class DeployTestBase:
                 if s.flag(name):
                     self.assertTrue(under_mount(s.flag(name), s.mounts), f"{s.name}: --{name} not on a volume")
 
+    def test_every_connection_is_mutual_tls_with_a_token_from_a_secret(self):
+        for s in self.services.values():
+            for flag in TLS_FILE_FLAGS:
+                path = s.flag(flag)
+                self.assertTrue(path, f"{s.name}: no --{flag}")
+                self.assertTrue(any(path == m or under_mount(path, [m]) for m in s.secrets),
+                                f"{s.name}: --{flag}={path} is not in a mounted secret")
+            if s.binary != "actor":
+                self.assertIn("--tls_client_auth", s.args, s.name)
+
     def test_trains_to_the_budget_and_restarts_from_state(self):
         services = by_binary(self.services)
         learner_flags = services["learner"]
@@ -225,6 +268,11 @@ class DeployTestBase:
             try:
                 d.start("reward_server-0", "reward_server")
                 d.start("learner-0", "learner", steps=8192)
+                for service in self.services.values():
+                    for command in service.probes:
+                        r = d.probe(command)
+                        self.assertEqual(r.returncode, 0, f"{service.name} probe {command}: {r.stdout}{r.stderr}")
+                        self.assertIn("SERVING", r.stdout)
                 finish("learner-0", actors(0))
                 rows = len(d.metrics(run_dir))
                 self.assertGreaterEqual(rows, 2)
@@ -298,7 +346,10 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
             self.assertEqual(number, listen_port(self.services[doc["metadata"]["name"]]), host)
             for probe in ("readinessProbe", "livenessProbe"):
                 if probe in container:
-                    self.assertEqual(container[probe]["grpc"]["port"], number, f"{host} {probe}")
+                    # The kubelet's gRPC probe cannot dial TLS: imca_health does.
+                    command = container[probe]["exec"]["command"]
+                    self.assertEqual(command[0], "imca_health", f"{host} {probe}")
+                    self.assertIn(f"--target=127.0.0.1:{number}", command, f"{host} {probe}")
 
     def test_workloads_select_their_pods_and_claims_exist(self):
         # The claims live apart so that deleting the workloads keeps the state.
@@ -328,6 +379,11 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                 self.assertEqual(c.get("imagePullPolicy"), "IfNotPresent", doc["metadata"]["name"])
                 for m in c.get("volumeMounts", []):
                     self.assertIn(m["name"], volumes)
+                    if "secret" in volumes[m["name"]]:
+                        self.assertEqual(volumes[m["name"]]["secret"]["secretName"], "imca-tls")
+                        self.assertTrue(m.get("readOnly"), doc["metadata"]["name"])
+                        self.assertNotIn("subPath", m, "a subPath mount never sees a rotated secret")
+                        continue
                     claim = volumes[m["name"]]["persistentVolumeClaim"]["claimName"]
                     self.assertIn(claim, claims)
                     mounted.append(claim)

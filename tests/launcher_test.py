@@ -159,6 +159,34 @@ class LauncherRunTest(unittest.TestCase):
                 codes = json.load(f)
             self.assertEqual(set(codes.values()), {0}, codes)
 
+    def test_secure_run_is_mutual_tls_with_a_token_on_every_connection(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "run")
+            r = run(["--secure", "--steps", "8000", "--out", out] + SMALL)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            for name in ["ca.pem", "server.pem", "server.key", "actor-0.pem", "actor-1.key", "token"]:
+                self.assertTrue(os.path.exists(os.path.join(out, "tls", name)), name)
+            logs = os.path.join(out, "logs")
+            for server in ("reward_server", "learner"):
+                with open(os.path.join(logs, server + ".log")) as f:
+                    text = f.read()
+                self.assertIn("(mutual TLS, token)", text)
+                # Each actor is known by its certificate.
+                self.assertIn("certificate CN=actor-0", text)
+                self.assertIn("certificate CN=actor-1", text)
+            with open(os.path.join(out, "summary.json")) as f:
+                self.assertGreaterEqual(json.load(f)["env_steps"], 8000)
+
+    def test_a_refused_client_ends_the_run_instead_of_being_restarted(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            services = launch.Services(tmp, max_restarts=5)
+            services.start("actor-0", ["/bin/sh", "-c", "echo 'learner refused this client'; exit 3"])
+            services.proc("actor-0").wait()
+            with self.assertRaises(launch.LaunchError) as raised:
+                services.supervise(["actor-0"])
+            self.assertIn("actor-0 was refused by a server (exit 3): learner refused this client", str(raised.exception))
+            self.assertEqual(services.restarts["actor-0"], 0)
+
     def test_interrupt_stops_everything_and_leaves_a_valid_folder(self):
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "run")

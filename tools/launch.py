@@ -27,6 +27,9 @@ PER_AGENT_REWARDS = ["eiti", "edti"]
 CREDITS = ["none", "independent", "shared", "imca"]
 ALGOS = ["mappo", "maddpg"]
 PERMUTATIONS = ["off", "random", "canonical"]
+# A client whose credentials a server refused exits with this (kExitRefused,
+# common/transport.h): restarting it would be refused again.
+EXIT_REFUSED = 3
 
 
 class LaunchError(Exception):
@@ -168,6 +171,9 @@ def parse_args(argv):
                    help="learner checkpoint interval: what a learner restart loses at most")
     p.add_argument("--snapshot-every", type=int, default=30,
                    help="reward server snapshot interval in s (count kinds also journal every increment)")
+    p.add_argument("--secure", action="store_true",
+                   help="mutual TLS and a bearer token on every connection: a throwaway CA, certificates and "
+                        "token are made in <run folder>/tls with openssl (docs/security.md)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     args = p.parse_args(argv)
     if args.resume:
@@ -406,6 +412,10 @@ class Services:
             if code is not None and code in self.finished_codes[name]:
                 finished.append(name)
                 continue
+            if code == EXIT_REFUSED:
+                # A server refused its credentials: the same ones would be
+                # refused again, so no restart.
+                raise LaunchError(f"{name} was refused by a server (exit {code}): {self.last_log_line(name)}")
             reason = None
             if code is not None:
                 reason = f"exited with code {code}"
@@ -608,6 +618,25 @@ def episode_gif(run_dir, scenario_flags, seed):
         print(f"imca train: no episode.gif: {r.stderr.strip()}", file=sys.stderr)
 
 
+def secure_flags(run_dir, args):
+    """Makes (or, on resume, reuses) the run's CA, certificates and token in
+    <run_dir>/tls; returns the servers' flags and a function of the actor
+    index giving its flags (its own client certificate, CN=actor-<i>)."""
+    tls = os.path.join(run_dir, "tls")
+    clients = [f"actor-{i}" for i in range(args.actors)]
+    if not all(os.path.exists(os.path.join(tls, f"{c}.pem")) for c in clients + ["ca", "server"]):
+        r = subprocess.run([os.path.join(ROOT, "tools", "make_certs.sh"), tls] + clients,
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            raise LaunchError(f"--secure: making certificates with openssl failed: {r.stderr.strip()}")
+    path = lambda name: os.path.join(tls, name)
+    server = [f"--tls_cert={path('server.pem')}", f"--tls_key={path('server.key')}", f"--tls_ca={path('ca.pem')}",
+              "--tls_client_auth=true", f"--token_file={path('token')}"]
+    actor = lambda i: [f"--tls_ca={path('ca.pem')}", f"--tls_cert={path(f'actor-{i}.pem')}",
+                       f"--tls_key={path(f'actor-{i}.key')}", f"--token_file={path('token')}"]
+    return server, actor
+
+
 def run(args):
     run_dir = args.out or os.path.join("runs", datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
     run_dir = os.path.abspath(run_dir)
@@ -623,6 +652,7 @@ def run(args):
     scenario_flags = [f"--scenario={args.scenario}", f"--map={config['map']}", f"--num_agents={args.num_agents}",
                       f"--step_limit={args.step_limit}", f"--view_radius={args.view_radius}",
                       f"--door_timer={args.door_timer}"]
+    server_tls, actor_tls = secure_flags(run_dir, args) if args.secure else ([], lambda i: [])
     services = Services(run_dir, max_restarts=args.max_restarts, stall_seconds=args.stall_seconds)
     rows = []
     interrupted = False
@@ -644,7 +674,7 @@ def run(args):
             f"--eta={args.eta}", f"--beta_t={args.beta_t}",
             f"--temperature={args.temperature}", f"--seed={args.seed}",
             f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}",
-            f"--snapshot_every={args.snapshot_every}", f"--listen=127.0.0.1:{args.reward_port}"],
+            f"--snapshot_every={args.snapshot_every}", *server_tls, f"--listen=127.0.0.1:{args.reward_port}"],
             restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"],
             finished_codes=())  # It never finishes by itself: any exit is a death.
         reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
@@ -661,7 +691,7 @@ def run(args):
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
             f"--seed={args.seed}", f"--edti={str(args.reward == 'edti').lower()}"] + learner_option_flags(args)
             + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else [])
-            + [f"--listen=127.0.0.1:{args.learner_port}"],
+            + server_tls + [f"--listen=127.0.0.1:{args.learner_port}"],
             # From its newest checkpoint (none yet: from scratch).
             restart_args=lambda: [f"--listen=127.0.0.1:{learner_port[0]}", "--resume=", "--auto_resume=true"])
         learner_port.append(services.wait_port("learner", ln, learner_port_file, timeout=60))
@@ -677,7 +707,7 @@ def run(args):
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
                 f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}", "--signal_exit_code=143",
                 # Its own wait for an ack gives up before the supervisor's.
-                f"--ack_timeout_ms={int(args.stall_seconds * 500)}"]
+                f"--ack_timeout_ms={int(args.stall_seconds * 500)}"] + actor_tls(i)
                 + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else [])
                 + [f"--seed={args.seed * 1000 + i + 1}"],
                 restart_args=lambda name=name, i=i: [
