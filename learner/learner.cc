@@ -284,9 +284,9 @@ std::shared_ptr<const v1::Policy> Learner::WaitForPolicy(int64_t min_version, ab
 }
 
 v1::LearnerStatus Learner::Status() const {
+  absl::MutexLock lock(&mu_);
   const double wall =
       wall_offset_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  absl::MutexLock lock(&mu_);
   v1::LearnerStatus status;
   status.set_policy_version(version_);
   status.set_env_steps(env_steps_);
@@ -694,8 +694,8 @@ absl::Status Learner::RestoreFrom(const std::string& meta_path) {
   pt.replace_extension(".pt");
   IMCA_RETURN_IF_ERROR(algorithm_->Load(pt.string()));
   iteration_ = iteration;
-  wall_offset_ = wall;
   absl::MutexLock lock(&mu_);
+  wall_offset_ = wall;
   version_ = version;
   env_steps_ = env_steps;
   trained_ = accepted;

@@ -139,10 +139,10 @@ class Learner {
   struct Phases {
     double wait = 0, featurise = 0, publish = 0;
   };
-  Phases phases_;
-  double wall_offset_ = 0;               // Seconds of earlier runs (resume).
+  Phases phases_;                        // Training thread only.
 
   mutable absl::Mutex mu_;
+  double wall_offset_ ABSL_GUARDED_BY(mu_) = 0;  // Seconds of earlier runs (resume).
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
   std::deque<QueuedUnroll> queue_ ABSL_GUARDED_BY(mu_);
   int64_t queued_steps_ ABSL_GUARDED_BY(mu_) = 0;

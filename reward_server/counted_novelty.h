@@ -36,7 +36,7 @@ class CountedNovelty : public Novelty {
   mutable CountStore store_ ABSL_GUARDED_BY(mu_);
 
  private:
-  mutable absl::Mutex save_mu_;  // Serialises whole snapshot writes; taken before mu_.
+  mutable absl::Mutex save_mu_ ABSL_ACQUIRED_BEFORE(mu_);  // Serialises whole snapshot writes.
 };
 
 }  // namespace imca::reward

@@ -65,7 +65,7 @@ InfluenceNovelty::InfluenceNovelty(const env::Scenario& scenario, const ScorerCo
 
 float InfluenceNovelty::Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
                                   const absl::flat_hash_map<uint64_t, uint32_t>& pending) const {
-  auto count = [&](uint64_t key) {
+  auto count = [&](uint64_t key) ABSL_SHARED_LOCKS_REQUIRED(mu_) {
     auto it = pending.find(key);
     return static_cast<double>(store_.Get(kTransitions, key)) + (it == pending.end() ? 0.0 : it->second);
   };

@@ -1,15 +1,16 @@
 #!/usr/bin/python3
-"""clang's -Wthread-safety over every translation unit that does not include
-LibTorch (g++ ignores ABSL_GUARDED_BY and friends; clang checks them).
+"""clang's -Wthread-safety over the project's translation units (g++ ignores
+ABSL_GUARDED_BY and friends; clang checks them).
 
-Reads build/compile_commands.json, keeps the project's own sources whose
-project includes never reach <torch/...> (LibTorch headers cost ~10 s and
-~1 GB each, and hold no lock of ours), and runs each with clang++
+Reads build/compile_commands.json, keeps the project's own sources (by
+default those whose project includes never reach <torch/...>: LibTorch
+headers cost clang ~15 s and ~1 GB per unit), and runs each with clang++
 -fsyntax-only, the build's flags, and -Werror=thread-safety: an access to a
 guarded field without its mutex, a lock not released, a call to a function
 that requires a lock without it, fail the check. Other clang warnings are
 off: this check is about locks only. Exit 0 when every unit passes.
-    tests/thread_safety.py BUILD_DIR [-j N]
+    tests/thread_safety.py BUILD_DIR [-j N] [--with-torch]
+--with-torch checks the LibTorch units too (the ctest does: ~100 s in all).
 """
 import argparse
 import concurrent.futures
@@ -67,6 +68,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("build")
     parser.add_argument("-j", type=int, default=2)
+    parser.add_argument("--with-torch", action="store_true", help="check the units that include LibTorch too")
     args = parser.parse_args()
     with open(os.path.join(args.build, "compile_commands.json")) as f:
         entries = json.load(f)
@@ -76,7 +78,7 @@ def main():
         path = os.path.realpath(os.path.join(entry["directory"], entry["file"]))
         if not path.startswith(ROOT + os.sep) or path.startswith(build + os.sep):
             continue  # Generated protobuf code and anything outside the project.
-        (skipped if reaches_torch(path, set()) else units).append((path, entry))
+        (skipped if reaches_torch(path, set()) and not args.with_torch else units).append((path, entry))
     if not units:
         print("thread_safety: no translation units found", file=sys.stderr)
         return 1
