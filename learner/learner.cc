@@ -231,6 +231,13 @@ absl::Status Learner::CheckNotDuplicate(const v1::Unroll& unroll) {
 absl::Status Learner::Admit(const v1::Unroll& unroll) {
   if (stopping_) return StoppedStatus();
   IMCA_RETURN_IF_ERROR(CheckNotDuplicate(unroll));
+  if (actors_.size() >= static_cast<size_t>(config_.max_actor_ids) && actors_.count(unroll.actor_id()) == 0) {
+    // Each id is remembered for exactly-once delivery and reported in the
+    // status: a client inventing ids must not grow them without bound.
+    ++unrolls_rejected_;
+    return absl::ResourceExhaustedError(absl::StrCat("the learner tracks at most ", config_.max_actor_ids,
+                                                     " actor ids; unroll.actor_id is one more"));
+  }
   if (unroll.policy_version() > version_) {
     // A learner restarted from an older checkpoint: the actor must refetch.
     ++unrolls_rejected_;

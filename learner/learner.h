@@ -173,6 +173,7 @@ class Learner {
   absl::flat_hash_map<std::string, Accepted> trained_ ABSL_GUARDED_BY(mu_);
   int64_t minibatches_skipped_ ABSL_GUARDED_BY(mu_) = 0;
   bool done_ ABSL_GUARDED_BY(mu_) = false;
+  // Every actor id seen; at most config_.max_actor_ids (Push refuses one more).
   std::set<std::string> actors_ ABSL_GUARDED_BY(mu_);
   std::deque<bool> eval_success_ ABSL_GUARDED_BY(mu_);
   std::deque<bool> train_success_ ABSL_GUARDED_BY(mu_);

@@ -90,6 +90,9 @@ struct LearnerConfig {
   int64_t batch_steps = 4096;
   int max_policy_lag = 4;         // Unrolls older than this many versions are dropped (on-policy only).
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
+  // Distinct actor ids remembered (exactly-once bookkeeping, the status's
+  // list); an unroll of one more is refused (RESOURCE_EXHAUSTED).
+  int max_actor_ids = 1 << 16;
   int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
   std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
   // If set, a CSV row per trained unroll (iteration, actor_id, incarnation,

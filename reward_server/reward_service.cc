@@ -22,7 +22,8 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
       reward_kind_(std::move(reward_kind)),
       config_(config),
       snapshot_path_(std::move(snapshot_path)),
-      inflight_(limits.max_inflight, limits.max_inflight_per_actor) {}
+      inflight_(limits.max_inflight, limits.max_inflight_per_actor),
+      max_tracked_actors_(limits.max_tracked_actors) {}
 
 grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                                       v1::ScoreResponse* response) {
@@ -80,16 +81,20 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::Sc
   bool dry_run = request->dry_run();
   if (!dry_run && unroll.incarnation() != 0) {
     absl::MutexLock lock(&scored_mu_);
-    auto [it, inserted] = last_scored_.try_emplace(unroll.actor_id(), unroll.incarnation(), unroll.sequence());
-    if (inserted) {
-      std::fprintf(stderr, "reward_server: first Score from %s (%s, %s)\n",
-                   absl::CHexEscape(unroll.actor_id()).c_str(), PeerIdentity(*context).c_str(),
-                   context->peer().c_str());
-    }
-    if (!inserted && it->second.first == unroll.incarnation() && unroll.sequence() <= it->second.second) {
+    auto it = last_scored_.find(unroll.actor_id());
+    if (it == last_scored_.end()) {
+      // Past the cap a new id is scored but not tracked (its retries would
+      // count again): ids a client invents must not grow the map for ever.
+      if (last_scored_.size() < max_tracked_actors_) {
+        last_scored_.emplace(unroll.actor_id(), std::make_pair(unroll.incarnation(), unroll.sequence()));
+        std::fprintf(stderr, "reward_server: first Score from %s (%s, %s)\n",
+                     absl::CHexEscape(unroll.actor_id()).c_str(), PeerIdentity(*context).c_str(),
+                     context->peer().c_str());
+      }
+    } else if (it->second.first == unroll.incarnation() && unroll.sequence() <= it->second.second) {
       dry_run = true;
       ++requests_repeated_;
-    } else if (last_scored_.size() <= kMaxTrackedActors) {
+    } else {
       it->second = {unroll.incarnation(), unroll.sequence()};
     }
   }

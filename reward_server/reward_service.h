@@ -25,6 +25,9 @@ namespace imca::reward {
 struct ServiceLimits {
   int max_inflight = 64;
   int max_inflight_per_actor = 4;
+  // Actor ids whose last Score is remembered to answer a retry without
+  // counting it again; a new id past this is scored but not remembered.
+  size_t max_tracked_actors = 1 << 16;
 };
 
 // The gRPC face of a Scorer: validates each request completely (names the bad
@@ -64,8 +67,8 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   std::atomic<int64_t> requests_rejected_{0};
   std::atomic<int64_t> requests_repeated_{0};
   // The newest scored (incarnation, sequence) of each actor id, to answer a
-  // retry without counting it twice; at most kMaxTrackedActors ids.
-  static constexpr size_t kMaxTrackedActors = 1 << 16;
+  // retry without counting it twice; at most max_tracked_actors_ ids.
+  const size_t max_tracked_actors_;
   absl::Mutex scored_mu_;
   absl::flat_hash_map<std::string, std::pair<uint64_t, int64_t>> last_scored_ ABSL_GUARDED_BY(scored_mu_);
 };

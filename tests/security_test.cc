@@ -112,8 +112,10 @@ class SecurityTest : public ::testing::Test {
     reward_server_ = *std::move(server);
   }
 
-  void StartLearner(ServerOptions options, int max_streams = learner::LearnerServiceImpl::kDefaultMaxStreams) {
+  void StartLearner(ServerOptions options, int max_streams = learner::LearnerServiceImpl::kDefaultMaxStreams,
+                    int max_actor_ids = learner::LearnerConfig{}.max_actor_ids) {
     learner::LearnerConfig config;
+    config.max_actor_ids = max_actor_ids;
     config.batch_steps = 1 << 20;  // Never trains here: only queues.
     config.budget_steps = 1 << 22;
     config.checkpoint_every = 0;
@@ -436,8 +438,13 @@ TEST_F(SecurityTest, AFloodingClientTakesOnlyItsOwnSlots) {
   StartReward(Secured(ServerTls()), &held, limits);
   std::vector<std::thread> calls;
   std::vector<grpc::Status> results(3);
+  // Requests made here, not on the calling threads; incarnation 0 (not
+  // tracked for retries), so the order the held calls finish in cannot make
+  // one of them a "repeat".
   auto call = [&](int i, std::string id) {
-    calls.emplace_back([&, i, id] { results[i] = Score(reward_port_, ClientTls(), ScoreRequest(id)); });
+    v1::ScoreRequest request = ScoreRequest(id);
+    request.mutable_unroll()->set_incarnation(0);
+    calls.emplace_back([&, i, request] { results[i] = Score(reward_port_, ClientTls(), request); });
   };
   call(0, "flood");
   call(1, "flood");
@@ -455,8 +462,7 @@ TEST_F(SecurityTest, AFloodingClientTakesOnlyItsOwnSlots) {
   held.Release();
   for (std::thread& t : calls) t.join();
   for (const grpc::Status& s : results) EXPECT_TRUE(s.ok()) << s.error_message();
-  // Three distinct requests of 32 transitions each (the flooder's two are
-  // the same request: the second is not a retry, its incarnation is 0).
+  // The three served requests, 32 transitions each.
   EXPECT_EQ(Scored(), 3 * 32);
   EXPECT_EQ(reward_->Stats().requests_rejected(), 2);
 }
@@ -479,6 +485,37 @@ TEST_F(SecurityTest, AnActorWithAWrongTokenStopsAtOnceWithOneLine) {
   EXPECT_THAT(status.message(), HasSubstr("learner refused this client's credentials"));
   EXPECT_EQ(Received(), 0);
   EXPECT_EQ(Scored(), 0);
+}
+
+TEST_F(SecurityTest, InventedActorIdsCannotGrowTheLearnersOrTheRewardServersBookkeeping) {
+  StartLearner(Secured(ServerTls()), learner::LearnerServiceImpl::kDefaultMaxStreams, /*max_actor_ids=*/2);
+  auto push = [&](const std::string& id, int64_t sequence) {
+    v1::Unroll u = testing::RandomUnroll(*scenario_, 16, 4, 40 + sequence);
+    u.set_actor_id(id);
+    u.set_incarnation(9);
+    u.set_sequence(sequence);
+    return learner_->Push(std::move(u));
+  };
+  EXPECT_TRUE(push("a", 1).ok());
+  EXPECT_TRUE(push("b", 1).ok());
+  const absl::Status third = push("c", 1);
+  EXPECT_TRUE(absl::IsResourceExhausted(third)) << third;
+  EXPECT_THAT(third.message(), HasSubstr("at most 2 actor ids"));
+  EXPECT_TRUE(push("a", 2).ok());  // Known ids go on.
+  EXPECT_EQ(Received(), 3);
+
+  reward::ServiceLimits limits;
+  limits.max_tracked_actors = 1;
+  StartReward(Secured(ServerTls()), nullptr, limits);
+  v1::ScoreRequest first = ScoreRequest("first"), other = ScoreRequest("other");
+  ASSERT_TRUE(Score(reward_port_, ClientTls(), first).ok());
+  ASSERT_TRUE(Score(reward_port_, ClientTls(), other).ok());
+  // The tracked id's retry is answered without counting; the id past the
+  // cap is not remembered, so its retry counts again (the documented cost).
+  ASSERT_TRUE(Score(reward_port_, ClientTls(), first).ok());
+  ASSERT_TRUE(Score(reward_port_, ClientTls(), other).ok());
+  EXPECT_EQ(reward_->Stats().requests_repeated(), 1);
+  EXPECT_EQ(Scored(), 3 * 32);
 }
 
 TEST(TransportConfigTest, BadCombinationsNameTheFlag) {
