@@ -320,7 +320,7 @@ absl::Status Actor::Run() {
   bool in_hand = false, scored = false, sent_once = false;
   while (!ShutdownRequested()) {
     if (!in_hand) {
-      if (!policy_.has_value() && !RefreshPolicy(/*wait=*/true)) break;
+      if (!policy_.has_value() && !RefreshPolicy(/*wait=*/true)) break;  // policy_error_ says why, if not done.
       unroll.Clear();
       Rollout(&unroll);
       in_hand = true;
@@ -361,9 +361,11 @@ absl::Status Actor::Run() {
     } else if (absl::IsOutOfRange(status)) {
       break;  // The learner's budget is done.
     } else if (IsRefusal(status)) {
-      // Retrying with the same credentials cannot help: one line, and stop.
-      WriteStatus("done", /*force=*/true);
-      return absl::Status(status.code(), DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls));
+      // Retrying with the same credentials cannot help: one line, and stop
+      // (closing the stream and writing the trace on the way out).
+      policy_error_ =
+          absl::Status(status.code(), DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls));
+      break;
     } else {
       // Keep the unroll: score it again if it has no answer yet, resend it
       // if it has no ack.
@@ -379,14 +381,11 @@ absl::Status Actor::Run() {
       // Synchronous: this version's share is delivered; act next with the
       // policy the learner trains on it.
       WriteStatus("waiting_policy", /*force=*/false);
-      if (!AwaitPolicy(acted + 1)) {
-        if (!policy_error_.ok()) return policy_error_;
-        break;
-      }
+      if (!AwaitPolicy(acted + 1)) break;
     } else {
       RefreshPolicy(/*wait=*/false);
     }
-    if (!policy_error_.ok()) return policy_error_;
+    if (!policy_error_.ok()) break;
     if (!policy_.has_value() || policy_->version() != acted) version_unrolls_ = 0;
   }
   CloseStream();

@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
   InstallShutdownSignalHandlers();
   std::fprintf(stderr, "%s: dialling the learner at %s and the reward server at %s (%s)\n", id.c_str(),
                absl::GetFlag(FLAGS_learner).c_str(), absl::GetFlag(FLAGS_reward_server).c_str(),
-               TransportSummary(*transport).c_str());
+               TransportSummary(*transport, /*server=*/false).c_str());
   actor::Actor actor(scenario->get(), config, *std::move(learner), *std::move(reward_server));
   const absl::Status status = actor.Run();
   if (IsRefusal(status)) {

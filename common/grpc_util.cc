@@ -74,7 +74,7 @@ absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(const std::string& lis
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (server == nullptr || *bound_port == 0) {
     return absl::UnavailableError(
-        absl::StrCat("cannot listen on ", listen, " (address in use or invalid)"));
+        absl::StrCat("--listen: cannot listen on ", listen, " (address in use or invalid)"));
   }
   server->GetHealthCheckService()->SetServingStatus(true);
   return server;

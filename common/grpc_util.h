@@ -42,8 +42,8 @@ struct ServerOptions {
 // free one) with `services`, grpc.health.v1 health checking and server
 // reflection, secured as `options.transport` says. Sets *bound_port. Errors:
 // INVALID_ARGUMENT naming the flag of a bad transport configuration or
-// unreadable file; UNAVAILABLE naming the address when it cannot be bound
-// (e.g. the port is in use).
+// unreadable file; UNAVAILABLE "--listen: cannot listen on <address> ..."
+// when it cannot be bound (e.g. the port is in use).
 absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(const std::string& listen,
                                                           const std::vector<grpc::Service*>& services,
                                                           int* bound_port, const ServerOptions& options = {});

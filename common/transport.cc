@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "absl/strings/ascii.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
@@ -23,6 +24,19 @@ absl::StatusOr<std::string> ReadPem(const std::string& path, absl::string_view f
     return absl::InvalidArgumentError(absl::StrCat(flag, ": '", path, "' holds no PEM block"));
   }
   return text.str();
+}
+
+struct PemPair {
+  std::string cert, key;
+};
+
+// The certificate chain and key of --tls_cert and --tls_key.
+absl::StatusOr<PemPair> ReadPemPair(const TransportConfig& config) {
+  absl::StatusOr<std::string> cert = ReadPem(config.tls_cert, "--tls_cert");
+  if (!cert.ok()) return cert.status();
+  absl::StatusOr<std::string> key = ReadPem(config.tls_key, "--tls_key");
+  if (!key.ok()) return key.status();
+  return PemPair{*std::move(cert), *std::move(key)};
 }
 
 bool ConstantTimeEquals(absl::string_view a, absl::string_view b) {
@@ -88,10 +102,10 @@ class TokenPlugin final : public grpc::MetadataCredentialsPlugin {
 
 }  // namespace
 
-std::string TransportSummary(const TransportConfig& config) {
-  std::string summary = config.require_client_cert                       ? "mutual TLS"
-                        : (config.server_tls() || config.client_tls()) ? "TLS"
-                                                                         : "plaintext";
+std::string TransportSummary(const TransportConfig& config, bool server) {
+  const bool tls = server ? config.server_tls() : config.client_tls();
+  const bool mutual = server ? config.require_client_cert : config.client_tls() && config.server_tls();
+  std::string summary = mutual ? "mutual TLS" : tls ? "TLS" : "plaintext";
   if (!config.token_file.empty()) summary += ", token";
   return summary;
 }
@@ -99,6 +113,10 @@ std::string TransportSummary(const TransportConfig& config) {
 absl::Status ValidateServerTransport(const TransportConfig& config) {
   if (config.tls_cert.empty() != config.tls_key.empty()) {
     return absl::InvalidArgumentError("--tls_cert and --tls_key go together (the server's certificate and key)");
+  }
+  if (!config.tls_ca.empty() && !config.server_tls()) {
+    return absl::InvalidArgumentError(
+        "--tls_ca on a server needs --tls_cert and --tls_key (it names the CA of client certificates)");
   }
   if (config.require_client_cert && (!config.server_tls() || config.tls_ca.empty())) {
     return absl::InvalidArgumentError(
@@ -196,14 +214,9 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeServerCredentials(c
   grpc::SslServerCredentialsOptions options(config.require_client_cert
                                                 ? GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY
                                                 : GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE);
-  grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
-  absl::StatusOr<std::string> cert = ReadPem(config.tls_cert, "--tls_cert");
-  if (!cert.ok()) return cert.status();
-  absl::StatusOr<std::string> key = ReadPem(config.tls_key, "--tls_key");
-  if (!key.ok()) return key.status();
-  pair.cert_chain = *std::move(cert);
-  pair.private_key = *std::move(key);
-  options.pem_key_cert_pairs.push_back(std::move(pair));
+  absl::StatusOr<PemPair> pem = ReadPemPair(config);
+  if (!pem.ok()) return pem.status();
+  options.pem_key_cert_pairs.push_back({std::move(pem->key), std::move(pem->cert)});
   if (!config.tls_ca.empty()) {
     absl::StatusOr<std::string> ca = ReadPem(config.tls_ca, "--tls_ca");
     if (!ca.ok()) return ca.status();
@@ -225,12 +238,10 @@ absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> MakeChannelCredentials
   if (!ca.ok()) return ca.status();
   options.pem_root_certs = *std::move(ca);
   if (config.server_tls()) {
-    absl::StatusOr<std::string> cert = ReadPem(config.tls_cert, "--tls_cert");
-    if (!cert.ok()) return cert.status();
-    absl::StatusOr<std::string> key = ReadPem(config.tls_key, "--tls_key");
-    if (!key.ok()) return key.status();
-    options.pem_cert_chain = *std::move(cert);
-    options.pem_private_key = *std::move(key);
+    absl::StatusOr<PemPair> pem = ReadPemPair(config);
+    if (!pem.ok()) return pem.status();
+    options.pem_cert_chain = std::move(pem->cert);
+    options.pem_private_key = std::move(pem->key);
   }
   std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::SslCredentials(options);
   if (!config.token_file.empty()) {
@@ -246,10 +257,11 @@ std::string PeerIdentity(const grpc::ServerContext& context) {
   std::shared_ptr<const grpc::AuthContext> auth = context.auth_context();
   if (auth != nullptr) {
     for (const grpc::string_ref& name : auth->FindPropertyValues("x509_common_name")) {
-      return absl::StrCat("certificate CN=", absl::string_view(name.data(), name.size()));
+      return absl::StrCat("certificate CN=", absl::CHexEscape(absl::string_view(name.data(), name.size())), ", ",
+                          context.peer());
     }
   }
-  return "no client certificate";
+  return absl::StrCat("no client certificate, ", context.peer());
 }
 
 bool IsRefusal(const absl::Status& status) {
@@ -272,6 +284,11 @@ std::string DescribeRpcFailure(absl::string_view what, const absl::Status& statu
     return absl::StrCat("TLS handshake with the ", what, " failed or the connection was closed (",
                         status.message(), "); check --tls_ca, --tls_cert/--tls_key and --tls_server_name "
                         "against the server's certificate and whether it requires a client certificate");
+  }
+  if (!tls && LooksLikeTlsFailure(status)) {
+    return absl::StrCat(what, ": the connection was closed (", status.message(),
+                        "); if the server runs TLS, this client needs --tls_ca (a TLS server closes plaintext "
+                        "connections)");
   }
   return absl::StrCat(what, ": ", absl::StatusCodeToString(status.code()), ": ", status.message());
 }

@@ -50,8 +50,9 @@ struct TransportConfig {
 };
 
 // "plaintext", "TLS", "mutual TLS", with ", token" when one is checked or
-// sent: for the line a binary logs when it starts.
-std::string TransportSummary(const TransportConfig& config);
+// sent: for the line a binary logs when it starts, as a server's or a
+// client's configuration.
+std::string TransportSummary(const TransportConfig& config, bool server);
 
 // INVALID_ARGUMENT naming the flag (--tls_cert, ...) when the fields do not
 // make a server's, or a client's, configuration.
@@ -98,10 +99,6 @@ inline constexpr char kHealthServicePrefix[] = "/grpc.health.v1.Health/";
 
 // Server credentials for `config` (already validated): plaintext, TLS, or
 // mutual TLS, with the token processor when token_file is set. Errors:
-// "plaintext", "TLS", "mutual TLS", with ", token" when one is checked or
-// sent: for the line a binary logs when it starts.
-std::string TransportSummary(const TransportConfig& config);
-
 // INVALID_ARGUMENT naming the flag whose file cannot be read.
 absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeServerCredentials(const TransportConfig& config);
 
@@ -111,7 +108,7 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeServerCredentials(c
 absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> MakeChannelCredentials(const TransportConfig& config);
 
 // Who is calling, for log lines: "certificate CN=<name>" under mutual TLS,
-// else "no client certificate".
+// else "no client certificate"; then the peer's address.
 std::string PeerIdentity(const grpc::ServerContext& context);
 
 // The exit code of a client whose credentials a server refused: a supervisor
@@ -127,8 +124,9 @@ bool IsRefusal(const absl::Status& status);
 // that requires a client certificate closes the socket on a bad one).
 bool LooksLikeTlsFailure(const absl::Status& status);
 
-// One log line for a failed call to `what` ("learner", "reward server"): a
-// TLS handshake failure says so and names the flags to check.
+// One log line for a failed call to `what` ("learner", "reward server") on a
+// channel that is (`tls`) or is not TLS: what reads as a failed handshake
+// says so and names the flags to check.
 std::string DescribeRpcFailure(absl::string_view what, const absl::Status& status, bool tls);
 
 }  // namespace imca

@@ -57,6 +57,13 @@ absl::Status CheckStates(const google::protobuf::RepeatedField<int32_t>& states,
 
 }  // namespace
 
+absl::Status ValidateActorId(absl::string_view actor_id) {
+  if (actor_id.size() > kMaxActorIdBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("unroll.actor_id is longer than ", kMaxActorIdBytes, " bytes"));
+  }
+  return absl::OkStatus();
+}
+
 absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
                             const UnrollNeeds& needs) {
   if (u.scenario() != scenario.name()) {
@@ -144,7 +151,7 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
   if (u.terminated_size() != 0) IMCA_RETURN_IF_ERROR(CheckSize(u.terminated(), "terminated", transitions));
   IMCA_RETURN_IF_ERROR(CheckFinite(u.episode_returns(), "episode_returns"));
   IMCA_RETURN_IF_ERROR(CheckFinite(u.eval_returns(), "eval_returns"));
-  if (u.actor_id().size() > 256) return absl::InvalidArgumentError("unroll.actor_id is longer than 256 bytes");
+  IMCA_RETURN_IF_ERROR(ValidateActorId(u.actor_id()));
   if (needs.intrinsic_rewards) {
     IMCA_RETURN_IF_ERROR(CheckSize(u.intrinsic_rewards(), "intrinsic_rewards", transitions * n));
     IMCA_RETURN_IF_ERROR(CheckFinite(u.intrinsic_rewards(), "intrinsic_rewards"));

@@ -2,6 +2,7 @@
 #define IMCA_COMMON_UNROLL_CHECK_H_
 
 #include "absl/status/status.h"
+#include "absl/strings/string_view.h"
 #include "common/env.h"
 #include "imca/v1/unroll.pb.h"
 
@@ -20,6 +21,13 @@ inline constexpr int kMaxTransitions = 65536;
 // any scenario's (pass pays 1000) and any bonus, far below what would make
 // returns overflow a float.
 inline constexpr float kMaxAbsReward = 1e6f;
+
+// Longest unroll.actor_id accepted, bytes.
+inline constexpr size_t kMaxActorIdBytes = 256;
+// INVALID_ARGUMENT "unroll.actor_id is longer than 256 bytes" past it. What
+// ValidateUnroll checks first; servers that key state by the id before the
+// rest is validated call it alone. Pure.
+absl::Status ValidateActorId(absl::string_view actor_id);
 
 // Checks an Unroll against the scenario it claims to come from: scenario name,
 // fingerprint (unless 0), agent/action counts and state size; T, E >= 1 and T*E <= kMaxTransitions;

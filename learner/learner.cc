@@ -187,9 +187,15 @@ absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cance
     return absl::CancelledError("the pusher went away while the queue was full");
   }
   if (stopping_) return StoppedStatus();
-  if (absl::Status duplicate = CheckNotDuplicate(queued.unroll); !duplicate.ok()) {
+  // Both checked again: other pushes may have been queued during the wait
+  // (a resend of this unroll, or new ids that filled the id cap).
+  if (absl::Status checked = CheckNotDuplicate(queued.unroll); !checked.ok()) {
     withdraw();
-    return duplicate;
+    return checked;
+  }
+  if (absl::Status checked = CheckActorIdRoom(queued.unroll); !checked.ok()) {
+    withdraw();
+    return checked;
   }
   const v1::Unroll& u = queued.unroll;
   ++unrolls_received_;
@@ -216,6 +222,17 @@ absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cance
   return absl::OkStatus();
 }
 
+absl::Status Learner::CheckActorIdRoom(const v1::Unroll& unroll) {
+  if (actors_.size() >= static_cast<size_t>(config_.max_actor_ids) && actors_.count(unroll.actor_id()) == 0) {
+    // Each id is remembered for exactly-once delivery and reported in the
+    // status: a client inventing ids must not grow them without bound.
+    ++unrolls_rejected_;
+    return absl::ResourceExhaustedError(absl::StrCat("the learner tracks at most ", config_.max_actor_ids,
+                                                     " actor ids; unroll.actor_id is one more"));
+  }
+  return absl::OkStatus();
+}
+
 absl::Status Learner::CheckNotDuplicate(const v1::Unroll& unroll) {
   if (unroll.incarnation() == 0) return absl::OkStatus();
   auto it = accepted_.find(unroll.actor_id());
@@ -231,13 +248,7 @@ absl::Status Learner::CheckNotDuplicate(const v1::Unroll& unroll) {
 absl::Status Learner::Admit(const v1::Unroll& unroll) {
   if (stopping_) return StoppedStatus();
   IMCA_RETURN_IF_ERROR(CheckNotDuplicate(unroll));
-  if (actors_.size() >= static_cast<size_t>(config_.max_actor_ids) && actors_.count(unroll.actor_id()) == 0) {
-    // Each id is remembered for exactly-once delivery and reported in the
-    // status: a client inventing ids must not grow them without bound.
-    ++unrolls_rejected_;
-    return absl::ResourceExhaustedError(absl::StrCat("the learner tracks at most ", config_.max_actor_ids,
-                                                     " actor ids; unroll.actor_id is one more"));
-  }
+  IMCA_RETURN_IF_ERROR(CheckActorIdRoom(unroll));
   if (unroll.policy_version() > version_) {
     // A learner restarted from an older checkpoint: the actor must refetch.
     ++unrolls_rejected_;

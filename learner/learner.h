@@ -101,6 +101,9 @@ class Learner {
   // ALREADY_EXISTS (counted) if `unroll` is not newer than its actor
   // incarnation's last accepted one.
   absl::Status CheckNotDuplicate(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // RESOURCE_EXHAUSTED if the unroll's actor id would be one past
+  // config_.max_actor_ids.
+  absl::Status CheckActorIdRoom(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Restore() of one checkpoint, by its .meta file.
   absl::Status RestoreFrom(const std::string& meta_path);
   // Waits for the next queued unroll that is not stale (dropping and counting

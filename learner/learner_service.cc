@@ -1,11 +1,12 @@
 #include "learner/learner_service.h"
 
-#include "absl/strings/escaping.h"
-#include "absl/strings/str_cat.h"
 #include <cstdio>
 
+#include "absl/strings/escaping.h"
+#include "absl/strings/str_cat.h"
 #include "common/grpc_util.h"
 #include "common/transport.h"
+#include "common/unroll_check.h"
 
 namespace imca::learner {
 namespace {
@@ -38,11 +39,8 @@ v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version
 grpc::Status LearnerServiceImpl::PushUnrolls(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) {
-  struct StreamSlot {
-    std::atomic<int>* streams;
-    ~StreamSlot() { streams->fetch_sub(1); }
-  } slot{&streams_};
-  if (streams_.fetch_add(1) >= max_streams_) {
+  absl::StatusOr<ConcurrencyLimiter::Slot> slot = streams_.Acquire("");
+  if (!slot.ok()) {
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                         absl::StrCat("the learner serves at most ", max_streams_, " unroll streams at once (--max_streams)"));
   }
@@ -51,8 +49,9 @@ grpc::Status LearnerServiceImpl::PushUnrolls(
   while (stream->Read(&request)) {
     if (first) {
       first = false;
-      std::fprintf(stderr, "learner: unroll stream from %s (%s, %s)\n", absl::CHexEscape(request.unroll().actor_id().substr(0, 256)).c_str(),
-                   PeerIdentity(*context).c_str(), context->peer().c_str());
+      std::fprintf(stderr, "learner: unroll stream from %s (%s)\n",
+                   absl::CHexEscape(request.unroll().actor_id().substr(0, kMaxActorIdBytes)).c_str(),
+                   PeerIdentity(*context).c_str());
     }
     const absl::Status status =
         learner_->Push(std::move(*request.mutable_unroll()), [context] { return context->IsCancelled(); });
@@ -71,9 +70,16 @@ grpc::Status LearnerServiceImpl::GetPolicy(grpc::ServerContext*, const v1::GetPo
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                         absl::StrCat("wait_ms: ", request->wait_ms(), " not in [0, ", kMaxPolicyWaitMs, "]"));
   }
-  std::shared_ptr<const v1::Policy> policy =
-      request->wait_ms() > 0 ? learner_->WaitForPolicy(request->min_version(), absl::Milliseconds(request->wait_ms()))
-                             : learner_->CurrentPolicy();
+  std::shared_ptr<const v1::Policy> policy = learner_->CurrentPolicy();
+  if (request->wait_ms() > 0 && policy->version() < request->min_version()) {
+    absl::StatusOr<ConcurrencyLimiter::Slot> slot = waiters_.Acquire("");
+    if (!slot.ok()) {
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          absl::StrCat("the learner holds at most ", max_streams_,
+                                       " waiting GetPolicy calls at once (--max_streams)"));
+    }
+    policy = learner_->WaitForPolicy(request->min_version(), absl::Milliseconds(request->wait_ms()));
+  }
   if (policy->version() >= request->min_version()) {
     *response = *policy;
   } else {

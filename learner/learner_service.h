@@ -1,8 +1,7 @@
 #ifndef IMCA_LEARNER_LEARNER_SERVICE_H_
 #define IMCA_LEARNER_LEARNER_SERVICE_H_
 
-#include <atomic>
-
+#include "common/admission.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "learner/learner.h"
 
@@ -15,9 +14,10 @@ v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version
 
 // The gRPC face of a Learner (sync API: each PushUnrolls stream holds one
 // server thread, which is what gives back-pressure). At most `max_streams`
-// PushUnrolls streams are served at once; one more ends at once with
-// RESOURCE_EXHAUSTED (an actor retries it with backoff), so a client that
-// opens streams in a loop cannot take every thread. Each stream's first
+// PushUnrolls streams, and as many GetPolicy long polls (wait_ms > 0), are
+// served at once; one more ends at once with RESOURCE_EXHAUSTED (an actor
+// retries it with backoff), so a client that opens calls in a loop cannot
+// take every thread. Each stream's first
 // unroll logs its actor id and the peer's identity (docs/security.md).
 // Thread-safe.
 class LearnerServiceImpl final : public v1::LearnerService::Service {
@@ -25,7 +25,8 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
   static constexpr int kDefaultMaxStreams = 256;
 
   explicit LearnerServiceImpl(Learner* learner, int max_streams = kDefaultMaxStreams)
-      : learner_(learner), max_streams_(max_streams) {}
+      : learner_(learner), max_streams_(max_streams), streams_(max_streams, max_streams),
+        waiters_(max_streams, max_streams) {}
 
   grpc::Status PushUnrolls(
       grpc::ServerContext* context,
@@ -38,7 +39,8 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
  private:
   Learner* learner_;
   const int max_streams_;
-  std::atomic<int> streams_{0};
+  ConcurrencyLimiter streams_;  // PushUnrolls streams (one key: the bound is in total).
+  ConcurrencyLimiter waiters_;  // GetPolicy calls that wait.
 };
 
 }  // namespace imca::learner

@@ -105,7 +105,8 @@ ABSL_FLAG(bool, concurrent_critic, kDefaults.ppo.concurrent_critic,
 ABSL_FLAG(int64_t, max_batch_mb, 8192,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(int, max_streams, imca::learner::LearnerServiceImpl::kDefaultMaxStreams,
-          "unroll streams served at once (one per actor); more end with RESOURCE_EXHAUSTED and retry");
+          "unroll streams served at once (one per actor), and as many GetPolicy calls waiting for a new "
+          "version; more end with RESOURCE_EXHAUSTED and retry");
 ABSL_FLAG(double, linger_seconds, 2,
           "after the budget, keep serving this long so that actors in backoff learn it is done");
 ABSL_FLAG(std::string, trained_log, "",
@@ -239,15 +240,12 @@ int main(int argc, char** argv) {
   InstallShutdownSignalHandlers();
   int port = 0;
   auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);
-  if (!server.ok()) {
-    return Fail(absl::IsInvalidArgument(server.status()) ? std::string(server.status().message())
-                                                         : absl::StrCat("--listen: ", server.status().message()));
-  }
+  if (!server.ok()) return Fail(std::string(server.status().message()));
   if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
     std::ofstream(port_file) << port << "\n";
   }
   std::fprintf(stderr, "learner: serving on port %d (%s)\n", port,
-               TransportSummary(server_options->transport).c_str());
+               TransportSummary(server_options->transport, /*server=*/true).c_str());
 
   // Signals only set a flag; this watcher turns it into Learner::Stop().
   // It also writes the status file: from this thread, so that a wedged

@@ -119,16 +119,13 @@ int main(int argc, char** argv) {
   InstallShutdownSignalHandlers();
   int port = 0;
   auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);
-  if (!server.ok()) {
-    return Fail(absl::IsInvalidArgument(server.status()) ? std::string(server.status().message())
-                                                         : absl::StrCat("--listen: ", server.status().message()));
-  }
+  if (!server.ok()) return Fail(std::string(server.status().message()));
   if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
     std::ofstream(port_file) << port << "\n";
   }
   std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d (%s)\n",
                std::string((*scenario)->name()).c_str(), kind.c_str(), absl::GetFlag(FLAGS_credit).c_str(), port,
-               TransportSummary(server_options->transport).c_str());
+               TransportSummary(server_options->transport, /*server=*/true).c_str());
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));
   const std::string status_file = absl::GetFlag(FLAGS_status_file);

@@ -28,6 +28,12 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
 grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                                       v1::ScoreResponse* response) {
   if (!accepting_.load()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "reward server is shutting down");
+  // The id keys the admission bound, so its size is checked first (the
+  // rest of the unroll after admission).
+  if (absl::Status id = ValidateActorId(request->unroll().actor_id()); !id.ok()) {
+    ++requests_rejected_;
+    return ToGrpcStatus(id);
+  }
   absl::StatusOr<ConcurrencyLimiter::Slot> slot = inflight_.Acquire(request->unroll().actor_id());
   if (!slot.ok()) {
     ++requests_rejected_;
@@ -87,9 +93,8 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::Sc
       // count again): ids a client invents must not grow the map for ever.
       if (last_scored_.size() < max_tracked_actors_) {
         last_scored_.emplace(unroll.actor_id(), std::make_pair(unroll.incarnation(), unroll.sequence()));
-        std::fprintf(stderr, "reward_server: first Score from %s (%s, %s)\n",
-                     absl::CHexEscape(unroll.actor_id()).c_str(), PeerIdentity(*context).c_str(),
-                     context->peer().c_str());
+        std::fprintf(stderr, "reward_server: first Score from %s (%s)\n",
+                     absl::CHexEscape(unroll.actor_id()).c_str(), PeerIdentity(*context).c_str());
       }
     } else if (it->second.first == unroll.incarnation() && unroll.sequence() <= it->second.second) {
       dry_run = true;

@@ -110,7 +110,12 @@ def k8s_services(docs):
         command = c.get("command", []) + c.get("args", [])
         volumes = {v["name"]: v for v in doc["spec"]["template"]["spec"].get("volumes", [])}
         mounts = [m["mountPath"] for m in c.get("volumeMounts", [])]
-        secrets = [m["mountPath"] for m in c.get("volumeMounts", []) if "secret" in volumes[m["name"]]]
+        secrets = []
+        for m in c.get("volumeMounts", []):
+            secret = volumes[m["name"]].get("secret")
+            if secret is not None:
+                items = secret.get("items")
+                secrets += [m["mountPath"] + "/" + i["path"] for i in items] if items else [m["mountPath"]]
         probes = [c[p]["exec"]["command"] for p in ("readinessProbe", "livenessProbe") if "exec" in c.get(p, {})]
         replicas = doc["spec"].get("replicas", doc["spec"].get("parallelism", 1))
         services[doc["metadata"]["name"]] = Service(doc["metadata"]["name"], command, mounts, replicas, secrets,
@@ -149,7 +154,7 @@ class Deployment:
         # "actor"), where the deployment mounts them.
         folders = {os.path.dirname(s.flag(f)) for s in services.values() for f in TLS_FILE_FLAGS if s.flag(f)}
         for folder in folders:
-            subprocess.run([os.path.join(ROOT, "tools", "make_certs.sh"), tmp + folder, "actor"], check=True)
+            subprocess.run([os.path.join(ROOT, "tools", "make_certs.sh"), tmp + folder, "actor", "probe"], check=True)
 
     def local_args(self, service, steps):
         """The service's flags with cluster paths, addresses and budget made local."""
@@ -238,6 +243,11 @@ class DeployTestBase:
                                 f"{s.name}: --{flag}={path} is not in a mounted secret")
             if s.binary != "actor":
                 self.assertIn("--tls_client_auth", s.args, s.name)
+            # Each process gets only what it needs: never the CA's key, an
+            # actor never the servers' key.
+            self.assertFalse([p for p in s.secrets if "ca.key" in p or p.endswith("/ca")], s.name)
+            if s.binary == "actor":
+                self.assertFalse([p for p in s.secrets if p.endswith("server.key")], s.name)
 
     def test_trains_to_the_budget_and_restarts_from_state(self):
         services = by_binary(self.services)
@@ -390,6 +400,13 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
         self.assertEqual(images, {i["name"] for i in self.kustomization["images"]})
         # ReadWriteOnce: one workload per claim.
         self.assertEqual(sorted(mounted), sorted(set(mounted)))
+
+    def test_a_refused_actor_fails_the_job_instead_of_being_replaced(self):
+        job = next(d for d in self.docs if d["kind"] == "Job"
+                   and d["spec"]["template"]["spec"]["containers"][0]["command"] == ["actor"])
+        rules = job["spec"]["podFailurePolicy"]["rules"]
+        self.assertIn({"action": "FailJob", "onExitCodes": {"containerName": "actor", "operator": "In",
+                                                            "values": [launch.EXIT_REFUSED]}}, rules)
 
     def test_actor_job_has_no_completion_count(self):
         # Work-queue style: the Job ends when the actors exit after the budget,

@@ -285,6 +285,8 @@ TEST_F(SecurityTest, APlaintextClientIsUnavailableAndReadsAsATlsFailure) {
   const grpc::Status status = stub->Score(&context, ScoreRequest(), &response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAVAILABLE);
   EXPECT_TRUE(LooksLikeTlsFailure(FromGrpcStatus(status))) << status.error_message();
+  EXPECT_THAT(DescribeRpcFailure("reward server", FromGrpcStatus(status), /*tls=*/false),
+              HasSubstr("if the server runs TLS, this client needs --tls_ca"));
   EXPECT_EQ(PushOne(learner_port_, TransportConfig{}).error_code(), grpc::StatusCode::UNAVAILABLE);
   EXPECT_EQ(Scored(), 0);
   EXPECT_EQ(Received(), 0);
@@ -392,6 +394,40 @@ TEST_F(SecurityTest, TheLearnerServesAtMostMaxStreamsStreams) {
     o->stream->WritesDone();
     o->stream->Finish();
   }
+}
+
+TEST_F(SecurityTest, TheLearnerHoldsAtMostMaxStreamsWaitingPolicyCalls) {
+  StartLearner(Secured(ServerTls()), /*max_streams=*/1);
+  auto stub = v1::LearnerService::NewStub(Channel(learner_port_, ClientTls()));
+  auto wait_for = [&](int64_t version, int wait_ms) {
+    grpc::ClientContext context;
+    context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
+    v1::GetPolicyRequest request;
+    request.set_min_version(version);
+    request.set_wait_ms(wait_ms);
+    v1::Policy policy;
+    return stub->GetPolicy(&context, request, &policy);
+  };
+  // One call waits 1.5 s (for a version that never comes; it retries while
+  // a probe below holds the slot for its 1 ms) ...
+  std::thread waiting([&] {
+    grpc::Status status;
+    do {
+      status = wait_for(5, 1500);
+    } while (status.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+  });
+  grpc::Status second;
+  for (int attempt = 0; attempt < 100; ++attempt) {  // Until the first holds its slot.
+    second = wait_for(5, 1);
+    if (second.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  // ... so a second waiting call is refused, while one that does not wait is served.
+  EXPECT_EQ(second.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(second.error_message(), HasSubstr("waiting GetPolicy calls"));
+  EXPECT_TRUE(wait_for(0, 0).ok());
+  waiting.join();
 }
 
 // Holds every Score inside the scorer until released.
@@ -526,6 +562,9 @@ TEST(TransportConfigTest, BadCombinationsNameTheFlag) {
   t.token_file = "token";
   EXPECT_THAT(ValidateServerTransport(t).message(), HasSubstr("--token_file needs --tls_cert"));
   EXPECT_THAT(ValidateClientTransport(t).message(), HasSubstr("need --tls_ca"));
+  t = {};
+  t.tls_ca = "ca.pem";  // A server with a CA but no certificate would serve plaintext.
+  EXPECT_THAT(ValidateServerTransport(t).message(), HasSubstr("--tls_ca on a server needs --tls_cert"));
   t = {};
   t.tls_cert = "a";
   t.tls_key = "b";

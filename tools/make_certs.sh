@@ -3,6 +3,8 @@
 # token for a secured run (docs/security.md), with Debian's openssl:
 #   tools/make_certs.sh DIR [CLIENT ...]
 # DIR/ca.pem            the CA every process trusts (--tls_ca)
+# DIR/ca/ca.key         its key, in a subfolder so that `kubectl create secret
+#                       --from-file=DIR` (top-level files only) leaves it out
 # DIR/server.pem, .key  the servers' certificate (--tls_cert, --tls_key); its
 #                       names: localhost, 127.0.0.1, learner, reward-server,
 #                       reward_server, and any in $IMCA_CERT_NAMES (comma list)
@@ -21,15 +23,16 @@ cd "$dir"
 
 key() { openssl genpkey -algorithm EC -pkeyopt ec_paramgen_curve:P-256 -out "$1" 2>/dev/null; }
 
-key ca.key
-openssl req -x509 -new -key ca.key -sha256 -days 30 -subj "/CN=imca test CA" \
+mkdir -p ca
+key ca/ca.key
+openssl req -x509 -new -key ca/ca.key -sha256 -days 30 -subj "/CN=imca test CA" \
   -addext "basicConstraints=critical,CA:TRUE" -addext "keyUsage=critical,keyCertSign,cRLSign" \
   -out ca.pem 2>/dev/null
 
 sign() {  # sign NAME CN EXTFILE
   key "$1.key"
   openssl req -new -key "$1.key" -subj "/CN=$2" -out "$1.csr" 2>/dev/null
-  openssl x509 -req -in "$1.csr" -CA ca.pem -CAkey ca.key -CAcreateserial -days 30 -sha256 \
+  openssl x509 -req -in "$1.csr" -CA ca.pem -CAkey ca/ca.key -CAcreateserial -days 30 -sha256 \
     -extfile "$3" -out "$1.pem" 2>/dev/null
   rm -f "$1.csr"
 }
