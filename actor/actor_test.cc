@@ -16,6 +16,7 @@
 #include "learner/learner_service.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
+#include "reward_server/scorer_testing.h"
 
 namespace imca {
 namespace {
@@ -79,18 +80,14 @@ class FlakyRewardService final : public v1::RewardService::Service {
 };
 
 // A real scorer that fails its second call, before changing anything.
-class FailingOnceScorer final : public reward::Scorer {
+class FailingOnceScorer final : public testing::ForwardingScorer {
  public:
-  explicit FailingOnceScorer(std::unique_ptr<reward::Scorer> real) : real_(std::move(real)) {}
+  explicit FailingOnceScorer(std::unique_ptr<reward::Scorer> real)
+      : ForwardingScorer(real.get()), real_(std::move(real)) {}
   absl::Status Score(const reward::TransitionBatch& batch, bool dry_run, const reward::ScoreOutput& out) override {
     if (++calls_ == 2) return absl::InternalError("injected: scorer failed");
-    return real_->Score(batch, dry_run, out);
+    return ForwardingScorer::Score(batch, dry_run, out);
   }
-  void FillStats(v1::RewardStats* stats) const override { real_->FillStats(stats); }
-  absl::Status Save(const std::string& path) const override { return real_->Save(path); }
-  absl::Status Load(const std::string& path) override { return real_->Load(path); }
-  absl::Status Restore(const std::string& path, bool sync) override { return real_->Restore(path, sync); }
-  std::optional<int64_t> DurableTransitions() const override { return real_->DurableTransitions(); }
 
  private:
   std::unique_ptr<reward::Scorer> real_;

@@ -25,9 +25,4 @@ void ConcurrencyLimiter::Release(const std::string& key) {
   if (it != per_key_.end() && --it->second <= 0) per_key_.erase(it);
 }
 
-int ConcurrencyLimiter::in_flight() const {
-  absl::MutexLock lock(&mu_);
-  return total_;
-}
-
 }  // namespace imca

@@ -20,6 +20,8 @@ namespace imca {
 class ConcurrencyLimiter {
  public:
   ConcurrencyLimiter(int max_total, int max_per_key) : max_total_(max_total), max_per_key_(max_per_key) {}
+  // Only the total bound: every Acquire() without a key shares it.
+  explicit ConcurrencyLimiter(int max_total) : ConcurrencyLimiter(max_total, max_total) {}
 
   // A held slot; released when destroyed. Movable.
   class Slot {
@@ -39,16 +41,14 @@ class ConcurrencyLimiter {
 
   // A slot for a call of `key`. Errors: RESOURCE_EXHAUSTED saying which
   // bound is reached ("per client" or "in total") and its value.
-  absl::StatusOr<Slot> Acquire(absl::string_view key) ABSL_LOCKS_EXCLUDED(mu_);
-
-  int in_flight() const ABSL_LOCKS_EXCLUDED(mu_);
+  absl::StatusOr<Slot> Acquire(absl::string_view key = "") ABSL_LOCKS_EXCLUDED(mu_);
 
  private:
   void Release(const std::string& key) ABSL_LOCKS_EXCLUDED(mu_);
 
   const int max_total_;
   const int max_per_key_;
-  mutable absl::Mutex mu_;
+  absl::Mutex mu_;
   int total_ ABSL_GUARDED_BY(mu_) = 0;
   absl::flat_hash_map<std::string, int> per_key_ ABSL_GUARDED_BY(mu_);
 };

@@ -8,6 +8,8 @@
 #include <string_view>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 
 namespace imca {
 
@@ -24,6 +26,10 @@ namespace imca {
 // concurrent writers of the same path must be serialised by their owner.
 absl::Status WriteFileAtomically(const std::string& path, const std::function<absl::Status(std::ostream&)>& write);
 absl::Status WriteFileAtomically(const std::string& path, std::string_view contents);
+
+// The whole of the file at `path`. Errors: NOT_FOUND "cannot read <what>
+// '<path>'" (`what` names the file's role: "map file", "token file").
+absl::StatusOr<std::string> ReadFile(const std::string& path, absl::string_view what);
 
 // fsync of a file or folder by path. Errors: INTERNAL naming it.
 absl::Status SyncPath(const std::string& path);

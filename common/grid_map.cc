@@ -1,11 +1,10 @@
 #include "common/grid_map.h"
 
 #include <algorithm>
-#include <fstream>
-#include <sstream>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "common/atomic_file.h"
 
 namespace imca::env {
 
@@ -128,11 +127,9 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
 }
 
 absl::StatusOr<GridMap> GridMap::Load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return absl::NotFoundError(absl::StrCat("cannot read map file '", path, "'"));
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return Parse(buffer.str(), path);
+  absl::StatusOr<std::string> text = ReadFile(path, "map file");
+  if (!text.ok()) return text.status();
+  return Parse(*text, path);
 }
 
 std::vector<bool> GridMap::GoalRoom() const { return RoomOf(goal_markers_.empty() ? treasures_ : goal_markers_); }

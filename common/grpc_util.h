@@ -56,6 +56,11 @@ std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target);
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& target,
                                                            const TransportConfig& transport);
 
+// Asks the server at the other end of `channel` whether it serves, through
+// grpc.health.v1.Health/Check for the server as a whole (no token needed).
+// True: SERVING; false: any other answer. Errors: the call's, converted.
+absl::StatusOr<bool> CheckHealth(const std::shared_ptr<grpc::Channel>& channel, std::chrono::milliseconds timeout);
+
 // Deadline `timeout` from now, for ClientContext::set_deadline.
 inline std::chrono::system_clock::time_point DeadlineIn(std::chrono::milliseconds timeout) {
   return std::chrono::system_clock::now() + timeout;

@@ -5,9 +5,7 @@
 #include <chrono>
 #include <cstdio>
 #include <string>
-#include <vector>
 
-#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 
 #include "absl/flags/flag.h"
@@ -40,32 +38,13 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "imca_health: %s\n", std::string(channel.status().message()).c_str());
     return 2;
   }
-  // Check with an empty HealthCheckRequest (the server as a whole); the
-  // answer's field 1 is the status, 1 = SERVING.
-  grpc::GenericStub stub(*channel);
-  grpc::CompletionQueue queue;
-  grpc::ClientContext context;
-  context.set_deadline(DeadlineIn(std::chrono::milliseconds(absl::GetFlag(FLAGS_timeout_ms))));
-  grpc::Slice empty("");
-  grpc::ByteBuffer request(&empty, 1), response;
-  auto call = stub.PrepareUnaryCall(&context, "/grpc.health.v1.Health/Check", request, &queue);
-  call->StartCall();
-  grpc::Status status;
-  call->Finish(&response, &status, nullptr);
-  void* tag;
-  bool ok;
-  queue.Next(&tag, &ok);
-  if (!status.ok()) {
+  const absl::StatusOr<bool> serving =
+      CheckHealth(*channel, std::chrono::milliseconds(absl::GetFlag(FLAGS_timeout_ms)));
+  if (!serving.ok()) {
     std::fprintf(stderr, "imca_health: %s\n",
-                 DescribeRpcFailure(target, FromGrpcStatus(status), transport->client_tls()).c_str());
+                 DescribeRpcFailure(target, serving.status(), transport->client_tls()).c_str());
     return 1;
   }
-  std::vector<grpc::Slice> slices;
-  std::string bytes;
-  if (response.Dump(&slices).ok()) {
-    for (const grpc::Slice& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
-  }
-  const bool serving = bytes == std::string("\x08\x01", 2);
-  std::printf("%s: %s\n", target.c_str(), serving ? "SERVING" : "NOT_SERVING");
-  return serving ? 0 : 1;
+  std::printf("%s: %s\n", target.c_str(), *serving ? "SERVING" : "NOT_SERVING");
+  return *serving ? 0 : 1;
 }

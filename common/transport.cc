@@ -3,27 +3,24 @@
 #include <sys/stat.h>
 
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "common/atomic_file.h"
 
 namespace imca {
 namespace {
 
 absl::StatusOr<std::string> ReadPem(const std::string& path, absl::string_view flag) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::InvalidArgumentError(absl::StrCat(flag, ": cannot read '", path, "'"));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (!absl::StrContains(text.str(), "-----BEGIN ")) {
+  absl::StatusOr<std::string> text = ReadFile(path, "PEM file");
+  if (!text.ok()) return absl::InvalidArgumentError(absl::StrCat(flag, ": ", text.status().message()));
+  if (!absl::StrContains(*text, "-----BEGIN ")) {
     return absl::InvalidArgumentError(absl::StrCat(flag, ": '", path, "' holds no PEM block"));
   }
-  return text.str();
+  return text;
 }
 
 struct PemPair {
@@ -153,17 +150,15 @@ absl::StatusOr<std::shared_ptr<TokenFile>> TokenFile::Open(const std::string& pa
 absl::Status TokenFile::Load() {
   struct stat info {};
   if (stat(path_.c_str(), &info) != 0) {
-    return absl::InvalidArgumentError(absl::StrCat("--token_file: cannot read '", path_, "'"));
+    return absl::InvalidArgumentError(absl::StrCat("--token_file: cannot read token file '", path_, "'"));
   }
   const int64_t mtime_ns = int64_t{info.st_mtim.tv_sec} * 1000000000 + info.st_mtim.tv_nsec;
   if (mtime_ns == mtime_ns_ && info.st_size == size_ && !tokens_.empty()) return absl::OkStatus();
-  std::ifstream in(path_, std::ios::binary);
-  if (!in) return absl::InvalidArgumentError(absl::StrCat("--token_file: cannot read '", path_, "'"));
-  std::ostringstream text;
-  text << in.rdbuf();
+  absl::StatusOr<std::string> text = ReadFile(path_, "token file");
+  if (!text.ok()) return absl::InvalidArgumentError(absl::StrCat("--token_file: ", text.status().message()));
   std::vector<std::string> tokens;
   int line_number = 0;
-  for (absl::string_view line : absl::StrSplit(text.str(), '\n')) {
+  for (absl::string_view line : absl::StrSplit(*text, '\n')) {
     ++line_number;
     line = absl::StripAsciiWhitespace(line);
     if (line.empty()) continue;
@@ -280,15 +275,13 @@ std::string DescribeRpcFailure(absl::string_view what, const absl::Status& statu
     return absl::StrCat(what, " refused this client's credentials (", absl::StatusCodeToString(status.code()),
                         ": ", status.message(), "); check --token_file");
   }
-  if (tls && LooksLikeTlsFailure(status)) {
-    return absl::StrCat("TLS handshake with the ", what, " failed or the connection was closed (",
-                        status.message(), "); check --tls_ca, --tls_cert/--tls_key and --tls_server_name "
-                        "against the server's certificate and whether it requires a client certificate");
-  }
-  if (!tls && LooksLikeTlsFailure(status)) {
-    return absl::StrCat(what, ": the connection was closed (", status.message(),
-                        "); if the server runs TLS, this client needs --tls_ca (a TLS server closes plaintext "
-                        "connections)");
+  if (LooksLikeTlsFailure(status)) {
+    return tls ? absl::StrCat("TLS handshake with the ", what, " failed or the connection was closed (",
+                              status.message(), "); check --tls_ca, --tls_cert/--tls_key and --tls_server_name "
+                              "against the server's certificate and whether it requires a client certificate")
+               : absl::StrCat(what, ": the connection was closed (", status.message(),
+                              "); if the server runs TLS, this client needs --tls_ca (a TLS server closes "
+                              "plaintext connections)");
   }
   return absl::StrCat(what, ": ", absl::StatusCodeToString(status.code()), ": ", status.message());
 }

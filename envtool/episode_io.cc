@@ -2,16 +2,15 @@
 
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <iostream>
 #include <iterator>
-#include <sstream>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "common/atomic_file.h"
 
 namespace imca::envtool {
 namespace {
@@ -144,11 +143,9 @@ absl::StatusOr<std::vector<std::vector<int32_t>>> ReadActionFile(const std::stri
   if (path == "-") {
     text.assign(std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>());
   } else {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return absl::NotFoundError(absl::StrCat("cannot read action file ", path));
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    text = buffer.str();
+    absl::StatusOr<std::string> read = ReadFile(path, "action file");
+    if (!read.ok()) return read.status();
+    text = *std::move(read);
   }
   return ParseActionFile(text, path == "-" ? "<stdin>" : path, num_agents, num_actions);
 }

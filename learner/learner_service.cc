@@ -39,7 +39,7 @@ v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version
 grpc::Status LearnerServiceImpl::PushUnrolls(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) {
-  absl::StatusOr<ConcurrencyLimiter::Slot> slot = streams_.Acquire("");
+  absl::StatusOr<ConcurrencyLimiter::Slot> slot = streams_.Acquire();
   if (!slot.ok()) {
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                         absl::StrCat("the learner serves at most ", max_streams_, " unroll streams at once (--max_streams)"));
@@ -72,7 +72,7 @@ grpc::Status LearnerServiceImpl::GetPolicy(grpc::ServerContext*, const v1::GetPo
   }
   std::shared_ptr<const v1::Policy> policy = learner_->CurrentPolicy();
   if (request->wait_ms() > 0 && policy->version() < request->min_version()) {
-    absl::StatusOr<ConcurrencyLimiter::Slot> slot = waiters_.Acquire("");
+    absl::StatusOr<ConcurrencyLimiter::Slot> slot = waiters_.Acquire();
     if (!slot.ok()) {
       return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                           absl::StrCat("the learner holds at most ", max_streams_,

@@ -25,8 +25,7 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
   static constexpr int kDefaultMaxStreams = 256;
 
   explicit LearnerServiceImpl(Learner* learner, int max_streams = kDefaultMaxStreams)
-      : learner_(learner), max_streams_(max_streams), streams_(max_streams, max_streams),
-        waiters_(max_streams, max_streams) {}
+      : learner_(learner), max_streams_(max_streams), streams_(max_streams), waiters_(max_streams) {}
 
   grpc::Status PushUnrolls(
       grpc::ServerContext* context,
@@ -39,7 +38,7 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
  private:
   Learner* learner_;
   const int max_streams_;
-  ConcurrencyLimiter streams_;  // PushUnrolls streams (one key: the bound is in total).
+  ConcurrencyLimiter streams_;  // PushUnrolls streams.
   ConcurrencyLimiter waiters_;  // GetPolicy calls that wait.
 };
 

@@ -2,9 +2,8 @@
 
 #include <sys/stat.h>
 
-#include <functional>
-
 #include <cstdio>
+#include <functional>
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"

@@ -4,6 +4,8 @@
 // Test helpers: run a Scorer on hand-written transitions or on an Unroll.
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "gtest/gtest.h"
@@ -17,6 +19,25 @@ namespace imca::testing {
 
 using reward::Scorer;
 using reward::TransitionBatch;
+
+// A Scorer that forwards every call to `real` (not owned); tests override
+// Score to inject a fault or hold a call.
+class ForwardingScorer : public reward::Scorer {
+ public:
+  explicit ForwardingScorer(reward::Scorer* real) : real_(real) {}
+  absl::Status Score(const reward::TransitionBatch& batch, bool dry_run, const reward::ScoreOutput& out) override {
+    return real_->Score(batch, dry_run, out);
+  }
+  bool ReturnsInfluences() const override { return real_->ReturnsInfluences(); }
+  void FillStats(v1::RewardStats* stats) const override { real_->FillStats(stats); }
+  absl::Status Save(const std::string& path) const override { return real_->Save(path); }
+  absl::Status Load(const std::string& path) override { return real_->Load(path); }
+  absl::Status Restore(const std::string& path, bool sync) override { return real_->Restore(path, sync); }
+  std::optional<int64_t> DurableTransitions() const override { return real_->DurableTransitions(); }
+
+ private:
+  reward::Scorer* real_;
+};
 
 // coop_nav's rules on a map given as text (default: a 5-cell line, agent 1
 // on cell 0, agent 2 on cell 4): the small scenario the scorer tests share.

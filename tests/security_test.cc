@@ -14,7 +14,6 @@
 #include <thread>
 #include <vector>
 
-#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 
 #include "absl/synchronization/mutex.h"
@@ -31,6 +30,7 @@
 #include "learner/learner_service.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
+#include "reward_server/scorer_testing.h"
 
 namespace imca {
 namespace {
@@ -250,27 +250,9 @@ TEST_F(SecurityTest, HealthChecksNeedNoToken) {
   StartReward(Secured(ServerTls()));
   TransportConfig no_token = ClientTls();
   no_token.token_file.clear();
-  // grpc.health.v1.Health/Check with an empty HealthCheckRequest, through
-  // the generic stub (Debian ships no generated health stubs).
-  grpc::GenericStub stub(Channel(reward_port_, no_token));
-  grpc::CompletionQueue cq;
-  grpc::ClientContext context;
-  context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
-  grpc::Slice empty("");
-  grpc::ByteBuffer request(&empty, 1), response;
-  auto call = stub.PrepareUnaryCall(&context, "/grpc.health.v1.Health/Check", request, &cq);
-  call->StartCall();
-  grpc::Status status;
-  call->Finish(&response, &status, reinterpret_cast<void*>(1));
-  void* tag;
-  bool ok;
-  ASSERT_TRUE(cq.Next(&tag, &ok));
-  ASSERT_TRUE(status.ok()) << status.error_message();
-  std::vector<grpc::Slice> slices;
-  ASSERT_TRUE(response.Dump(&slices).ok());
-  std::string bytes;
-  for (const grpc::Slice& slice : slices) bytes.append(reinterpret_cast<const char*>(slice.begin()), slice.size());
-  EXPECT_EQ(bytes, std::string("\x08\x01", 2));  // status: SERVING.
+  const absl::StatusOr<bool> serving = CheckHealth(Channel(reward_port_, no_token), std::chrono::seconds(10));
+  ASSERT_TRUE(serving.ok()) << serving.status();
+  EXPECT_TRUE(*serving);
   // The same channel without a token is refused any other call.
   EXPECT_EQ(Score(reward_port_, no_token, ScoreRequest()).error_code(), grpc::StatusCode::UNAUTHENTICATED);
 }
@@ -348,7 +330,9 @@ TEST_F(SecurityTest, AnOversizedRequestIsResourceExhaustedBeforeAnyHandler) {
   *request.mutable_unroll() = testing::RandomUnroll(*scenario_, 64, 256, 3);
   ASSERT_GT(request.ByteSizeLong(), size_t{1} << 20);
   v1::PushUnrollsResponse ack;
-  if (stream->Write(request)) EXPECT_FALSE(stream->Read(&ack));
+  if (stream->Write(request)) {
+    EXPECT_FALSE(stream->Read(&ack));
+  }
   EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_EQ(Received(), 0);
   // The same server still serves a request under the cap.
@@ -431,20 +415,17 @@ TEST_F(SecurityTest, TheLearnerHoldsAtMostMaxStreamsWaitingPolicyCalls) {
 }
 
 // Holds every Score inside the scorer until released.
-class HeldScorer final : public reward::Scorer {
+class HeldScorer final : public testing::ForwardingScorer {
  public:
-  explicit HeldScorer(reward::Scorer* real) : real_(real) {}
+  using ForwardingScorer::ForwardingScorer;
   absl::Status Score(const reward::TransitionBatch& batch, bool dry_run, const reward::ScoreOutput& out) override {
-    absl::MutexLock lock(&mu_);
-    ++entered_;
-    mu_.Await(absl::Condition(&released_));
-    return real_->Score(batch, dry_run, out);
+    {
+      absl::MutexLock lock(&mu_);
+      ++entered_;
+      mu_.Await(absl::Condition(&released_));
+    }
+    return ForwardingScorer::Score(batch, dry_run, out);
   }
-  void FillStats(v1::RewardStats* stats) const override { real_->FillStats(stats); }
-  absl::Status Save(const std::string& path) const override { return real_->Save(path); }
-  absl::Status Load(const std::string& path) override { return real_->Load(path); }
-  absl::Status Restore(const std::string& path, bool sync) override { return real_->Restore(path, sync); }
-  std::optional<int64_t> DurableTransitions() const override { return real_->DurableTransitions(); }
 
   bool AwaitEntered(int n) {
     absl::MutexLock lock(&mu_);
@@ -457,7 +438,6 @@ class HeldScorer final : public reward::Scorer {
   }
 
  private:
-  reward::Scorer* real_;
   absl::Mutex mu_;
   int entered_ ABSL_GUARDED_BY(mu_) = 0;
   bool released_ ABSL_GUARDED_BY(mu_) = false;
@@ -577,7 +557,7 @@ TEST(TransportConfigTest, BadCombinationsNameTheFlag) {
   auto server = StartServer("127.0.0.1:0", {}, &port, options);
   ASSERT_FALSE(server.ok());
   EXPECT_TRUE(absl::IsInvalidArgument(server.status()));
-  EXPECT_THAT(server.status().message(), HasSubstr("--tls_cert: cannot read 'a'"));
+  EXPECT_THAT(server.status().message(), HasSubstr("--tls_cert: cannot read PEM file 'a'"));
 }
 
 TEST(TokenFileTest, RejectsBadTokensNamingTheLineAndReloadsOnChange) {
