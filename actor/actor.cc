@@ -14,6 +14,7 @@
 #include "common/atomic_file.h"
 #include "common/grpc_util.h"
 #include "common/transport.h"
+#include "common/unroll_check.h"
 
 namespace imca::actor {
 namespace {
@@ -50,6 +51,38 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
   reached_.resize(static_cast<size_t>(envs) * scenario->state_size());
   terminated_.reset(new bool[envs]);
   truncated_.reset(new bool[envs]);
+  RegisterMetrics();
+}
+
+void Actor::RegisterMetrics() {
+  using metrics::Type;
+  Counters& c = counters_;
+  c.env_steps = &registry_.AddCounter({"imca_actor_env_steps_total", Type::kCounter,
+                                       "Joint environment steps acted (training environments)."});
+  c.episodes = &registry_.AddCounter({"imca_actor_episodes_total", Type::kCounter,
+                                      "Training episodes finished."});
+  c.transitions_scored = &registry_.AddCounter({"imca_actor_transitions_scored_total", Type::kCounter,
+                                                "Transitions whose Score the reward server answered."});
+  c.unrolls_pushed = &registry_.AddCounter({"imca_actor_unrolls_pushed_total", Type::kCounter,
+                                            "Unrolls the learner acknowledged (taken or dropped for good)."});
+  c.unrolls_resent = &registry_.AddCounter({"imca_actor_unrolls_resent_total", Type::kCounter,
+                                            "Unrolls sent again after a lost stream."});
+  c.reconnects = &registry_.AddCounter({"imca_actor_reconnects_total", Type::kCounter,
+                                        "Unroll streams opened again after one broke."});
+  c.retries = &registry_.AddCounter({"imca_actor_retries_total", Type::kCounter,
+                                     "Failed Score or push attempts retried with backoff."});
+  c.policy_updates = &registry_.AddCounter({"imca_actor_policy_updates_total", Type::kCounter,
+                                            "Policies fetched and adopted."});
+  c.policy_version = &registry_.AddGauge({"imca_actor_policy_version", Type::kGauge,
+                                          "Version of the policy the actor acts with (-1: none yet)."});
+  c.policy_version->Set(-1);
+  const metrics::Family refused{"imca_actor_unrolls_refused_total", Type::kCounter,
+                                "Unrolls the learner refused or dropped, by reason."};
+  c.refused.assign(v1::Rejection_ARRAYSIZE, nullptr);
+  for (int r = v1::Rejection_MIN; r <= v1::Rejection_MAX; ++r) {
+    if (!v1::Rejection_IsValid(r) || r == v1::REJECTION_NONE) continue;
+    c.refused[r] = &registry_.AddCounter(refused, {{"reason", RejectionReason(static_cast<v1::Rejection>(r))}});
+  }
 }
 
 bool Actor::RefreshPolicy(bool wait) {
@@ -116,6 +149,8 @@ bool Actor::Adopt(const v1::Policy& policy) {
     return false;
   }
   policy_ = *std::move(mlp);
+  counters_.policy_updates->Increment();
+  counters_.policy_version->Set(static_cast<double>(policy.version()));
   return true;
 }
 
@@ -176,8 +211,10 @@ void Actor::Rollout(v1::Unroll* u) {
     }
   }
   u->mutable_states()->Add(envs_.states(), envs_.states() + E * k);
+  counters_.env_steps->Increment(static_cast<double>(u->length()) * E);
   finished_.clear();
   envs_.TakeFinished(&finished_);
+  counters_.episodes->Increment(static_cast<double>(finished_.size()));
   for (const env::EpisodeEnd& end : finished_) {
     u->add_episode_returns(end.team_return);
     u->add_episode_success(end.success);
@@ -228,6 +265,8 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     // bounds how long a hung learner can hold this actor.
     stream_context_->set_deadline(DeadlineIn(std::chrono::minutes(10)));
     stream_ = learner_->PushUnrolls(stream_context_.get());
+    if (stream_broken_) counters_.reconnects->Increment();
+    stream_broken_ = false;
   }
   v1::PushUnrollsRequest request;
   request.mutable_unroll()->Swap(unroll);
@@ -246,12 +285,16 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     waiting_context_ = nullptr;
   }
   if (!acked) {
+    stream_broken_ = true;
     const grpc::Status status = stream_->Finish();
     stream_.reset();
     stream_context_.reset();
     return status.ok() ? absl::UnavailableError("learner closed the stream") : FromGrpcStatus(status);
   }
   ++stream_unrolls_;
+  if (ack.rejection() != v1::REJECTION_NONE && v1::Rejection_IsValid(ack.rejection())) {
+    counters_.refused[ack.rejection()]->Increment();
+  }
   switch (ack.rejection()) {
     case v1::REJECTION_NONE:
     case v1::REJECTION_STALE:      // Dropped and counted by the learner.
@@ -333,17 +376,22 @@ absl::Status Actor::Run() {
       scored = status.ok();
       if (scored) {
         transitions_scored_ += int64_t{unroll.length()} * unroll.num_envs();
+        counters_.transitions_scored->Increment(static_cast<double>(unroll.length()) * unroll.num_envs());
         if (!config_.trace_file.empty()) Trace(unroll);
       }
     }
     if (scored) {
-      if (sent_once) ++unrolls_resent_;
+      if (sent_once) {
+        ++unrolls_resent_;
+        counters_.unrolls_resent->Increment();
+      }
       sent_once = true;
       status = Push(&unroll);
     }
     if (status.ok()) {
       in_hand = false;
       ++unrolls_pushed_;
+      counters_.unrolls_pushed->Increment();
       // It counts towards this version's share only if it was acted with the
       // version now in use: after REJECTION_AHEAD the actor went back to the
       // learner's older policy, whose share it has not started.
@@ -372,6 +420,7 @@ absl::Status Actor::Run() {
       std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
                    DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls).c_str());
       WriteStatus("retrying", /*force=*/false);
+      counters_.retries->Increment();
       if (LearnerDone()) break;
       backoff.Wait();
       continue;

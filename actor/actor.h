@@ -15,6 +15,7 @@
 #include "absl/synchronization/mutex.h"
 #include "common/env.h"
 #include "common/featurizer.h"
+#include "common/metrics.h"
 #include "common/policy_mlp.h"
 #include "common/rng.h"
 #include "common/vec_env.h"
@@ -89,6 +90,10 @@ class Actor {
   uint64_t incarnation() const { return incarnation_; }
   // Transitions whose Score was answered.
   int64_t transitions_scored() const { return transitions_scored_; }
+  // The actor's Prometheus families (docs/metrics.md): env steps, episodes,
+  // unrolls pushed, resent and refused by reason, reconnects, retries,
+  // policy updates. Thread-safe.
+  const metrics::Registry& metrics() const { return registry_; }
 
  private:
   // Fetches a newer policy if there is one. With `wait`, retries until one
@@ -140,6 +145,8 @@ class Actor {
   // The ack watchdog: while Push waits for an ack, `ack_wait_since_` is set
   // and a thread started by Run() cancels the stream past ack_timeout.
   void WatchAcks();
+  // Registers the actor's families in registry_ (from the constructor).
+  void RegisterMetrics();
   absl::Mutex watch_mu_;
   bool watching_ ABSL_GUARDED_BY(watch_mu_) = false;
   std::optional<std::chrono::steady_clock::time_point> ack_wait_since_ ABSL_GUARDED_BY(watch_mu_);
@@ -154,6 +161,22 @@ class Actor {
   int64_t unrolls_resent_ = 0;
   int64_t transitions_scored_ = 0;
   std::chrono::steady_clock::time_point status_written_{};
+  bool stream_broken_ = false;  // The last stream ended without an ack: the next one is a reconnect.
+
+  metrics::Registry registry_;
+  struct Counters {
+    metrics::Counter* env_steps;
+    metrics::Counter* episodes;
+    metrics::Counter* transitions_scored;
+    metrics::Counter* unrolls_pushed;
+    metrics::Counter* unrolls_resent;
+    metrics::Counter* reconnects;
+    metrics::Counter* retries;
+    metrics::Counter* policy_updates;
+    std::vector<metrics::Counter*> refused;  // By v1::Rejection.
+    metrics::Gauge* policy_version;
+  };
+  Counters counters_;
   int version_unrolls_ = 0;  // Unrolls pushed with the current policy version.
 
   // Scratch buffers, sized once.

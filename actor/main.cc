@@ -13,8 +13,13 @@
 #include "actor/actor.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
+#include "common/json.h"
+#include "common/metrics_flags.h"
+#include "common/rpc_metrics.h"
 #include "common/scenario_flags.h"
+#include "common/transport.h"
 #include "common/transport_flags.h"
+#include "common/unroll_check.h"
 
 ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
 ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
@@ -33,6 +38,9 @@ ABSL_FLAG(int, signal_exit_code, 0,
 ABSL_FLAG(int, sync_unrolls, 0,
           "synchronous collection (learner --synchronous): act this many unrolls with each policy "
           "version, then wait for the next version (0: asynchronous)");
+ABSL_FLAG(bool, list, false,
+          "print this binary's choices and limits (scenarios, the unroll cap, exit codes) as JSON and exit: what "
+          "the Python tools ask instead of copying them");
 ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor; docs/reliability.md)");
 ABSL_FLAG(std::string, trace_file, "",
@@ -42,6 +50,14 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA actor: steps environments and streams unrolls");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
+  if (absl::GetFlag(FLAGS_list)) {
+    std::printf("%s", absl::StrCat("{\"program\": \"actor\",\n \"scenarios\": ", JsonStrings(env::ScenarioNames()),
+                                   ",\n \"max_unroll_transitions\": ", kMaxTransitions,
+                                   ",\n \"max_door_timer\": ", env::kMaxDoorTimer,
+                                   ",\n \"exit_refused\": ", kExitRefused, "}\n")
+                          .c_str());
+    return 0;
+  }
   std::string id = absl::GetFlag(FLAGS_actor_id);
   if (id.empty()) {
     char host[256] = {};
@@ -82,16 +98,20 @@ int main(int argc, char** argv) {
   if (config.eval_envs < 0) return fail("--eval_envs must be >= 0");
   config.sync_unrolls = absl::GetFlag(FLAGS_sync_unrolls);
   if (config.sync_unrolls < 0) return fail("--sync_unrolls must be >= 0");
-  if (int64_t{config.num_envs} * config.unroll_length > 65536) {
-    return fail("--envs * --unroll_length must be <= 65536");
+  if (int64_t{config.num_envs} * config.unroll_length > kMaxTransitions) {
+    return fail(absl::StrCat("--envs * --unroll_length must be <= ", kMaxTransitions));
   }
 
   absl::StatusOr<TransportConfig> transport = ClientTransportFromFlags();
   if (!transport.ok()) return fail(std::string(transport.status().message()));
   config.tls = transport->client_tls();
-  auto learner = MakeChannel(absl::GetFlag(FLAGS_learner), *transport);
+  metrics::Registry process;
+  metrics::AddProcessMetrics(&process);
+  RpcMetrics rpc_metrics(RpcMetrics::Side::kClient,
+                         {v1::LearnerService::service_full_name(), v1::RewardService::service_full_name()}, &process);
+  auto learner = MakeChannel(absl::GetFlag(FLAGS_learner), *transport, &rpc_metrics);
   if (!learner.ok()) return fail(std::string(learner.status().message()));
-  auto reward_server = MakeChannel(absl::GetFlag(FLAGS_reward_server), *transport);
+  auto reward_server = MakeChannel(absl::GetFlag(FLAGS_reward_server), *transport, &rpc_metrics);
   if (!reward_server.ok()) return fail(std::string(reward_server.status().message()));
 
   InstallShutdownSignalHandlers();
@@ -99,6 +119,8 @@ int main(int argc, char** argv) {
                absl::GetFlag(FLAGS_learner).c_str(), absl::GetFlag(FLAGS_reward_server).c_str(),
                TransportSummary(*transport, /*server=*/false).c_str());
   actor::Actor actor(scenario->get(), config, *std::move(learner), *std::move(reward_server));
+  auto metrics_server = StartMetricsFromFlags(id.c_str(), {&process, &actor.metrics()});
+  if (!metrics_server.ok()) return fail(std::string(metrics_server.status().message()));
   const absl::Status status = actor.Run();
   if (IsRefusal(status)) {
     fail(std::string(status.message()));

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
@@ -34,6 +35,14 @@ absl::StatusOr<E> ParseName(const std::string& text, const EnumName<E> (&names)[
     absl::StrAppend(&choices, i == 0 ? "" : (i + 1 == N ? " or " : ", "), names[i].name);
   }
   return absl::InvalidArgumentError(absl::StrCat("'", text, "' is not ", choices));
+}
+
+// Every name of `names`, in order (what `--list` prints).
+template <typename E, size_t N>
+std::vector<std::string> Names(const EnumName<E> (&names)[N]) {
+  std::vector<std::string> out;
+  for (const EnumName<E>& n : names) out.push_back(n.name);
+  return out;
 }
 
 }  // namespace imca

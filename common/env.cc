@@ -100,8 +100,6 @@ class Spread final : public Scenario {
 // door: 0 closed, count + 1 while open.
 class DoorScenario : public Scenario {
  public:
-  static constexpr int kMaxDoorTimer = 30;
-
   DoorScenario(GridMap map, const ScenarioConfig& config, int n, int num_actions, int limit, float success,
                float penalty, int default_timer, bool needs_treasure, bool share_cells)
       : Scenario(std::move(map), config, n, 0, num_actions, limit, success, penalty, share_cells),
@@ -601,9 +599,9 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConf
   if (const std::string problem = spec->second.check(map); !problem.empty()) {
     return absl::InvalidArgumentError(absl::StrCat(map.source(), ": ", config.name, " ", problem));
   }
-  if (config.door_timer < -1 || config.door_timer > DoorScenario::kMaxDoorTimer) {
+  if (config.door_timer < -1 || config.door_timer > kMaxDoorTimer) {
     return absl::InvalidArgumentError(
-        absl::StrCat("door_timer ", config.door_timer, " not in [0, ", DoorScenario::kMaxDoorTimer, "]"));
+        absl::StrCat("door_timer ", config.door_timer, " not in [0, ", kMaxDoorTimer, "]"));
   }
   if (config.step_limit < 0 || config.step_limit > 100000) {
     return absl::InvalidArgumentError(absl::StrCat("step_limit ", config.step_limit, " not in [1, 100000]"));

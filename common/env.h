@@ -38,9 +38,13 @@ struct ScenarioConfig {
   double step_penalty = std::nan("");
   int view_radius = 0;   // predator_prey: 0 = full observation, r = see others within r cells.
   // Door scenarios (multi_room, pass, secret_room): EDTI's door-open interval
-  // `doi` (docs/scenarios.md, "Doors"); -1: the scenario default.
+  // `doi` (docs/scenarios.md, "Doors"), at most kMaxDoorTimer; -1: the
+  // scenario default.
   int door_timer = -1;
 };
+
+// Largest door_timer (a door's state holds the count).
+inline constexpr int kMaxDoorTimer = 30;
 
 struct StepOutcome {
   bool terminated = false;  // Episode over, no bootstrap (success or failure).

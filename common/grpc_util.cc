@@ -12,6 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/rng.h"
+#include "common/rpc_metrics.h"
 
 namespace imca {
 namespace {
@@ -72,6 +73,11 @@ absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(const std::string& lis
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, kKeepaliveTimeMs / 2);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
   for (grpc::Service* service : services) builder.RegisterService(service);
+  if (options.rpc_metrics != nullptr) {
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> interceptors;
+    interceptors.push_back(options.rpc_metrics->ServerInterceptorFactory());
+    builder.experimental().SetInterceptorCreators(std::move(interceptors));
+  }
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (server == nullptr || *bound_port == 0) {
     return absl::UnavailableError(
@@ -107,13 +113,17 @@ std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target) {
 }
 
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& target,
-                                                           const TransportConfig& transport) {
+                                                           const TransportConfig& transport,
+                                                           RpcMetrics* rpc_metrics) {
   if (absl::Status valid = ValidateClientTransport(transport); !valid.ok()) return valid;
   absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> credentials = MakeChannelCredentials(transport);
   if (!credentials.ok()) return credentials.status();
   grpc::ChannelArguments args = ChannelArgs();
   if (!transport.tls_server_name.empty()) args.SetSslTargetNameOverride(transport.tls_server_name);
-  return grpc::CreateCustomChannel(target, *credentials, args);
+  if (rpc_metrics == nullptr) return grpc::CreateCustomChannel(target, *credentials, args);
+  std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> interceptors;
+  interceptors.push_back(rpc_metrics->ClientInterceptorFactory());
+  return grpc::experimental::CreateCustomChannelWithInterceptors(target, *credentials, args, std::move(interceptors));
 }
 
 absl::StatusOr<bool> CheckHealth(const std::shared_ptr<grpc::Channel>& channel, std::chrono::milliseconds timeout) {

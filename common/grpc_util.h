@@ -15,6 +15,8 @@
 
 namespace imca {
 
+class RpcMetrics;  // common/rpc_metrics.h
+
 // The one place where absl::Status and grpc::Status are converted.
 grpc::Status ToGrpcStatus(const absl::Status& status);
 absl::Status FromGrpcStatus(const grpc::Status& status);
@@ -36,6 +38,8 @@ struct ServerOptions {
   // Requests larger than this end with RESOURCE_EXHAUSTED before any handler
   // runs.
   int max_receive_bytes = kMaxMessageBytes;
+  // If set, every call is counted and timed into it (must outlive the server).
+  RpcMetrics* rpc_metrics = nullptr;
 };
 
 // Builds and starts a gRPC server on `listen` ("host:port"; port 0 picks a
@@ -51,10 +55,12 @@ absl::StatusOr<std::unique_ptr<grpc::Server>> StartServer(const std::string& lis
 // A plaintext client channel with keepalive (kKeepaliveTimeMs) and message
 // limits that fit the largest unrolls.
 std::shared_ptr<grpc::Channel> MakeChannel(const std::string& target);
-// The same, secured as `transport` says (TLS, client certificate, token).
-// Errors: INVALID_ARGUMENT naming the flag.
+// The same, secured as `transport` says (TLS, client certificate, token),
+// its calls counted and timed into `rpc_metrics` if set (which must outlive
+// the channel). Errors: INVALID_ARGUMENT naming the flag.
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& target,
-                                                           const TransportConfig& transport);
+                                                           const TransportConfig& transport,
+                                                           RpcMetrics* rpc_metrics = nullptr);
 
 // Asks the server at the other end of `channel` whether it serves, through
 // grpc.health.v1.Health/Check for the server as a whole (no token needed).

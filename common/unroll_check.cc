@@ -3,10 +3,16 @@
 #include <algorithm>
 #include <cmath>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/strip.h"
 #include "common/status_macros.h"
 
 namespace imca {
+
+std::string RejectionReason(v1::Rejection rejection) {
+  return absl::AsciiStrToLower(absl::StripPrefix(v1::Rejection_Name(rejection), "REJECTION_"));
+}
 namespace {
 
 template <typename Field>

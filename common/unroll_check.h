@@ -1,9 +1,12 @@
 #ifndef IMCA_COMMON_UNROLL_CHECK_H_
 #define IMCA_COMMON_UNROLL_CHECK_H_
 
+#include <string>
+
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "common/env.h"
+#include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 
 namespace imca {
@@ -21,6 +24,10 @@ inline constexpr int kMaxTransitions = 65536;
 // any scenario's (pass pays 1000) and any bonus, far below what would make
 // returns overflow a float.
 inline constexpr float kMaxAbsReward = 1e6f;
+
+// The lower-case name of a rejection without its prefix ("over_cap" for
+// REJECTION_OVER_CAP): the reason label of the dropped-unroll metrics.
+std::string RejectionReason(v1::Rejection rejection);
 
 // Longest unroll.actor_id accepted, bytes.
 inline constexpr size_t kMaxActorIdBytes = 256;

@@ -24,12 +24,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMetricsHeader[] =
-    "iteration,env_steps,wall_seconds,env_steps_per_sec,success_rate,train_success_rate,"
-    "episode_return,intrinsic_reward,share_max,policy_version,policy_lag,dropped_stale,"
-    "policy_loss,value_loss,entropy,approx_kl,clip_fraction,behaviour_kl,"
-    "ms_wait,ms_featurise,ms_values,ms_gae,ms_copy,ms_prepare,ms_forward,ms_backward,ms_optimizer,ms_publish,"
-    "global_reward,contribution_abs,success_episodes,train_success_episodes,voi_reward,updates,replay_size";
 constexpr int kCheckpointsKept = 3;
 
 template <typename T>
@@ -99,6 +93,9 @@ absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name) { return P
 std::string TimeLimitName(TimeLimit limit) { return NameOf(limit, kTimeLimitNames); }
 absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name) { return ParseName(name, kTimeLimitNames); }
 std::string AlgoName(Algo algo) { return NameOf(algo, kAlgoNames); }
+std::vector<std::string> AlgoNames() { return Names(kAlgoNames); }
+std::vector<std::string> CriticInputNames() { return Names(kCriticInputNames); }
+std::vector<std::string> TimeLimitNames() { return Names(kTimeLimitNames); }
 absl::StatusOr<Algo> ParseAlgo(const std::string& name) { return ParseName(name, kAlgoNames); }
 
 absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
@@ -127,12 +124,122 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
   return learner;
 }
 
+namespace {
+
+// The learner's families besides its metrics.csv columns (iteration_metrics.cc).
+const metrics::Family kUnrollsReceived{"imca_learner_unrolls_received_total", metrics::Type::kCounter,
+                                       "Unrolls accepted into the training queue."};
+const metrics::Family kUnrollsDropped{"imca_learner_unrolls_dropped_total", metrics::Type::kCounter,
+                                      "Unrolls refused or dropped, by reason (stale, ahead, over_cap, duplicate, "
+                                      "invalid)."};
+const metrics::Family kBatchesDropped{"imca_learner_batches_dropped_total", metrics::Type::kCounter,
+                                      "Iterations whose batch the algorithm refused (non-finite advantages)."};
+const metrics::Family kMinibatchesSkipped{"imca_learner_minibatches_skipped_total", metrics::Type::kCounter,
+                                          "Minibatches whose loss or gradient was not finite (no step)."};
+const metrics::Family kQueueDepth{"imca_learner_queue_depth", metrics::Type::kGauge,
+                                  "Unrolls queued for training."};
+const metrics::Family kQueuedSteps{"imca_learner_queued_env_steps", metrics::Type::kGauge,
+                                   "Joint env steps in the queued unrolls."};
+const metrics::Family kPushersWaiting{"imca_learner_pushers_waiting", metrics::Type::kGauge,
+                                      "Pushes blocked on a full queue (back-pressure on the actors)."};
+const metrics::Family kStalled{"imca_learner_stalled_seconds", metrics::Type::kGauge,
+                               "Seconds the training thread has not taken queued unrolls while no update runs "
+                               "(0 when idle or training): a learner that stays high is wedged."};
+const metrics::Family kTraining{"imca_learner_training_seconds", metrics::Type::kGauge,
+                                "Seconds the update running now has taken (0: none)."};
+const metrics::Family kActorIds{"imca_learner_actor_ids", metrics::Type::kGauge,
+                                "Distinct actor ids that have pushed unrolls."};
+const metrics::Family kIncarnations{"imca_learner_actor_incarnations_total", metrics::Type::kCounter,
+                                    "Actor incarnations seen: a restarted actor comes back as a new one."};
+const metrics::Family kBudgetDone{"imca_learner_budget_done", metrics::Type::kGauge,
+                                  "1 once the learner has trained its --steps, else 0."};
+const metrics::Family kPolicyLag{"imca_learner_policy_lag_versions", metrics::Type::kHistogram,
+                                 "Policy versions between an unroll's acting policy and the one it is trained "
+                                 "into, per trained unroll.",
+                                 {0, 1, 2, 3, 4, 6, 8, 12, 16, 32, 64}};
+
+}  // namespace
+
+v1::Rejection RejectionOf(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kOk: return v1::REJECTION_NONE;
+    case absl::StatusCode::kFailedPrecondition: return v1::REJECTION_STALE;
+    case absl::StatusCode::kAborted: return v1::REJECTION_AHEAD;
+    case absl::StatusCode::kResourceExhausted: return v1::REJECTION_OVER_CAP;
+    case absl::StatusCode::kAlreadyExists: return v1::REJECTION_DUPLICATE;
+    default: return v1::REJECTION_INVALID;
+  }
+}
+
 Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm)
-    : scenario_(scenario), config_(config), algorithm_(std::move(algorithm)) {}
+    : scenario_(scenario), config_(config), algorithm_(std::move(algorithm)) {
+  RegisterMetrics();
+}
+
+void Learner::RegisterMetrics() {
+  dropped_.assign(v1::Rejection_ARRAYSIZE, nullptr);
+  for (int r = v1::Rejection_MIN; r <= v1::Rejection_MAX; ++r) {
+    if (!v1::Rejection_IsValid(r) || r == v1::REJECTION_NONE) continue;
+    dropped_[r] = &registry_.AddCounter(kUnrollsDropped, {{"reason", RejectionReason(static_cast<v1::Rejection>(r))}});
+  }
+  policy_lag_ = &registry_.AddHistogram(kPolicyLag);
+  // Read under mu_ at each scrape.
+  auto read = [this](auto field) {
+    return [this, field]() -> double {
+      absl::MutexLock lock(&mu_);
+      return field(*this);
+    };
+  };
+  registry_.AddCallback(kUnrollsReceived, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.unrolls_received_);
+                       }));
+  registry_.AddCallback(kBatchesDropped, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.batches_dropped_);
+                       }));
+  registry_.AddCallback(kMinibatchesSkipped, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.minibatches_skipped_);
+                       }));
+  registry_.AddCallback(kQueueDepth, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.queue_.size());
+                       }));
+  registry_.AddCallback(kQueuedSteps, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.queued_steps_);
+                       }));
+  registry_.AddCallback(kPushersWaiting, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.pushers_waiting_);
+                       }));
+  registry_.AddCallback(kActorIds, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.actors_.size());
+                       }));
+  registry_.AddCallback(kIncarnations, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return static_cast<double>(l.actor_incarnations_);
+                       }));
+  registry_.AddCallback(kBudgetDone, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+                         return l.done_ ? 1.0 : 0.0;
+                       }));
+  registry_.AddCallback(kStalled, [this] { return Status().seconds_stalled(); });
+  registry_.AddCallback(kTraining, [this] { return Status().seconds_training(); });
+}
 
 int64_t Learner::IterationBytes(int64_t steps) const { return algorithm_->IterationBytes(steps); }
 
 absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
+  absl::Status status = Enqueue(std::move(unroll), cancelled);
+  switch (status.code()) {
+    case absl::StatusCode::kInvalidArgument:
+    case absl::StatusCode::kResourceExhausted:
+    case absl::StatusCode::kFailedPrecondition:
+    case absl::StatusCode::kAborted:
+    case absl::StatusCode::kAlreadyExists:
+      dropped_[RejectionOf(status)]->Increment();
+      break;
+    default:  // Accepted, or not refused for the unroll itself (stopping, gone).
+      break;
+  }
+  return status;
+}
+
+absl::Status Learner::Enqueue(v1::Unroll unroll, const std::function<bool()>& cancelled) {
   absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true, config_.edti});
   if (valid.ok()) {
     // A batch gathers unrolls until it holds batch_steps, so the largest is
@@ -355,6 +462,7 @@ std::optional<Learner::QueuedUnroll> Learner::NextUnroll() {
     queued_steps_ -= Steps(queued.unroll);
     if (!algorithm_->off_policy() && version_ - queued.unroll.policy_version() > config_.max_policy_lag) {
       ++unrolls_stale_;
+      dropped_[v1::REJECTION_STALE]->Increment();
       continue;
     }
     return queued;
@@ -459,6 +567,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   for (const v1::Unroll& u : unrolls) {
     steps += Steps(u);
     lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
+    policy_lag_->Observe(static_cast<double>(version - u.policy_version()));
   }
   const CreditStats credit = MeasureCredit(unrolls, steps * scenario_->num_agents());
   {
@@ -499,7 +608,9 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   phases_.publish = Lap(lap);
   // A metrics row that cannot be written is reported (once per run of
   // failures) but does not stop training: the checkpoints still hold it all.
-  const absl::Status written = WriteMetricsRow(stats, lag, credit);
+  const IterationRecord record = Record(stats, lag, credit);
+  exporter_.Publish(record);
+  const absl::Status written = WriteMetricsRow(record);
   if (!written.ok() && metrics_ok_) std::fprintf(stderr, "learner: %s\n", std::string(written.message()).c_str());
   metrics_ok_ = written.ok();
   return absl::OkStatus();
@@ -541,12 +652,56 @@ void Learner::Publish() {
   policy_ = std::make_shared<const v1::Policy>(algorithm_->ExportPolicy(version_));
 }
 
-absl::Status Learner::WriteMetricsRow(const IterationStats& stats, double lag, const CreditStats& credit) {
+IterationRecord Learner::Record(const IterationStats& stats, double lag, const CreditStats& credit) const {
+  const v1::LearnerStatus s = Status();
+  IterationRecord r;
+  {
+    absl::MutexLock lock(&mu_);
+    r.train_success_rate = Mean(train_success_);
+    r.success_episodes = static_cast<double>(eval_success_.size());
+    r.train_success_episodes = static_cast<double>(train_success_.size());
+  }
+  r.iteration = static_cast<double>(iteration_);
+  r.env_steps = static_cast<double>(s.env_steps());
+  r.wall_seconds = s.wall_seconds();
+  r.env_steps_per_sec = s.env_steps_per_sec();
+  r.success_rate = s.success_rate();
+  r.episode_return = s.episode_return();
+  r.intrinsic_reward = credit.intrinsic;
+  r.share_max = credit.share_max;
+  r.policy_version = static_cast<double>(s.policy_version());
+  r.policy_lag = lag;
+  r.dropped_stale = static_cast<double>(s.unrolls_dropped_stale());
+  r.policy_loss = stats.policy_loss;
+  r.value_loss = stats.value_loss;
+  r.entropy = stats.entropy;
+  r.approx_kl = stats.approx_kl;
+  r.clip_fraction = stats.clip_fraction;
+  r.behaviour_kl = stats.behaviour_kl;
+  r.wait = phases_.wait;
+  r.featurise = phases_.featurise;
+  r.values = stats.seconds_values;
+  r.gae = stats.seconds_gae;
+  r.copy = stats.seconds_copy;
+  r.prepare = stats.seconds_prepare;
+  r.forward = stats.seconds_forward;
+  r.backward = stats.seconds_backward;
+  r.optimizer = stats.seconds_optimizer;
+  r.publish = phases_.publish;
+  r.global_reward = credit.global_reward;
+  r.contribution_abs = credit.contribution_abs;
+  r.voi_reward = stats.voi_reward;
+  r.updates = static_cast<double>(stats.updates);
+  r.replay_size = static_cast<double>(stats.replay_size);
+  r.shares = credit.shares;
+  return r;
+}
+
+absl::Status Learner::WriteMetricsRow(const IterationRecord& record) {
   if (config_.run_dir.empty()) return absl::OkStatus();
   if (!metrics_.is_open()) {
     const fs::path path = fs::path(config_.run_dir) / "metrics.csv";
-    std::string header = kMetricsHeader;
-    for (int a = 1; a <= scenario_->num_agents(); ++a) absl::StrAppend(&header, ",share_", a);
+    const std::string header = CsvHeader(scenario_->num_agents());
     std::string existing;
     if (std::ifstream in(path); in) std::getline(in, existing);
     if (!existing.empty() && existing != header) {
@@ -560,32 +715,7 @@ absl::Status Learner::WriteMetricsRow(const IterationStats& stats, double lag, c
     metrics_.open(path, std::ios::app);
     if (existing.empty()) metrics_ << header << "\n";
   }
-  const v1::LearnerStatus s = Status();
-  double train_success;
-  size_t eval_episodes, train_episodes;  // How many episodes each success rate is over.
-  {
-    absl::MutexLock lock(&mu_);
-    train_success = Mean(train_success_);
-    eval_episodes = eval_success_.size();
-    train_episodes = train_success_.size();
-  }
-  metrics_ << absl::StrFormat("%d,%d,%.3f,%.1f,%.4f,%.4f,%.4f,%.6g,%.4f,%d,%.3f,%d,%.6g,%.6g,%.6g,%.6g,%.4f,%.6g",
-                              iteration_, s.env_steps(), s.wall_seconds(), s.env_steps_per_sec(),
-                              s.success_rate(), train_success, s.episode_return(), credit.intrinsic,
-                              credit.share_max,
-                              s.policy_version(), lag, s.unrolls_dropped_stale(), stats.policy_loss,
-                              stats.value_loss, stats.entropy, stats.approx_kl, stats.clip_fraction,
-                              stats.behaviour_kl);
-  // Where this iteration's time went (docs/benchmarks.md, "Where the learner's time goes").
-  for (double seconds : {phases_.wait, phases_.featurise, stats.seconds_values, stats.seconds_gae, stats.seconds_copy,
-                         stats.seconds_prepare, stats.seconds_forward, stats.seconds_backward,
-                         stats.seconds_optimizer, phases_.publish}) {
-    metrics_ << absl::StrFormat(",%.2f", 1e3 * seconds);
-  }
-  metrics_ << absl::StrFormat(",%.6g,%.6g,%d,%d,%.6g,%d,%d", credit.global_reward, credit.contribution_abs,
-                              eval_episodes, train_episodes, stats.voi_reward, stats.updates, stats.replay_size);
-  for (double p : credit.shares) metrics_ << absl::StrFormat(",%.4f", p);
-  metrics_ << "\n";
+  metrics_ << CsvRow(record) << "\n";
   metrics_.flush();
   if (!metrics_) {
     // Reopened (and appended to) on the next row.

@@ -19,13 +19,19 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "common/env.h"
+#include "common/metrics.h"
 #include "common/featurizer.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 #include "learner/algorithms/interface.h"
+#include "learner/iteration_metrics.h"
 #include "learner/learner_config.h"
 
 namespace imca::learner {
+
+// The typed reason of one of Learner::Push's refusal codes (one per reason,
+// learner.h); REJECTION_NONE for OK.
+v1::Rejection RejectionOf(const absl::Status& status);
 
 // The learner's domain logic, independent of gRPC: a bounded queue of
 // validated unrolls, the training loop of its Algorithm (MAPPO or MADDPG,
@@ -79,6 +85,9 @@ class Learner {
   int64_t IterationBytes(int64_t steps) const;
   // The algorithm (tests).
   const Algorithm& algorithm() const { return *algorithm_; }
+  // The learner's Prometheus families (docs/metrics.md): its metrics.csv
+  // columns (iteration_metrics.h), queue, refusals by reason, policy lag.
+  const metrics::Registry& metrics() const { return registry_; }
 
   // Restores trainer, version and counters from a checkpoint directory's
   // newest complete checkpoint (one with its .meta), or, if that one cannot
@@ -96,6 +105,10 @@ class Learner {
   // An accepted unroll with its network inputs, featurised by Push.
   using QueuedUnroll = FeaturisedUnroll;
 
+  // Push without counting refusals by reason.
+  absl::Status Enqueue(v1::Unroll unroll, const std::function<bool()>& cancelled);
+  // Registers the learner's families in registry_ (from the constructor).
+  void RegisterMetrics();
   // Push's checks of version, staleness and stopping; counts what it refuses.
   absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // ALREADY_EXISTS (counted) if `unroll` is not newer than its actor
@@ -123,11 +136,20 @@ class Learner {
     std::vector<double> shares;   // p^a per agent slot.
   };
   CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
+  // The iteration's metrics.csv row.
+  IterationRecord Record(const IterationStats& stats, double lag, const CreditStats& credit) const;
   // Appends a row to <run_dir>/metrics.csv. Errors: INTERNAL if it cannot be written.
-  absl::Status WriteMetricsRow(const IterationStats& stats, double lag, const CreditStats& credit);
+  absl::Status WriteMetricsRow(const IterationRecord& record);
 
   const env::Scenario* scenario_;
   const LearnerConfig config_;
+  // Before everything that registers into it; callbacks read the fields
+  // below under mu_.
+  metrics::Registry registry_;
+  IterationExporter exporter_{&registry_};
+  metrics::Histogram* policy_lag_ = nullptr;  // Of each trained unroll, in versions.
+  // Refused unrolls by reason (v1::Rejection), each series there from the start.
+  std::vector<metrics::Counter*> dropped_;
   std::unique_ptr<Algorithm> algorithm_;  // Training thread only (but its thread-safe Featurise).
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::ofstream metrics_;                // Training thread only.

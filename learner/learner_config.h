@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "learner/gae.h"
@@ -26,8 +27,10 @@ enum class TimeLimit {
 // "state" / "joint_obs", "bootstrap" / "terminal"; parsers return
 // INVALID_ARGUMENT naming the accepted values.
 std::string CriticInputName(CriticInput input);
+std::vector<std::string> CriticInputNames();
 absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name);
 std::string TimeLimitName(TimeLimit limit);
+std::vector<std::string> TimeLimitNames();
 absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name);
 
 // MADDPG for discrete actions (learner/algorithms/maddpg.h, docs/learner.md
@@ -60,6 +63,7 @@ enum class Algo {
 };
 // "mappo" / "maddpg"; the parser returns INVALID_ARGUMENT naming them.
 std::string AlgoName(Algo algo);
+std::vector<std::string> AlgoNames();
 absl::StatusOr<Algo> ParseAlgo(const std::string& name);
 
 struct LearnerConfig {

@@ -13,19 +13,30 @@ namespace {
 
 constexpr int kMaxPolicyWaitMs = 60000;
 
-// Learner::Push's refusal codes, one per reason (learner.h).
-v1::Rejection RejectionOf(const absl::Status& status) {
-  switch (status.code()) {
-    case absl::StatusCode::kOk: return v1::REJECTION_NONE;
-    case absl::StatusCode::kFailedPrecondition: return v1::REJECTION_STALE;
-    case absl::StatusCode::kAborted: return v1::REJECTION_AHEAD;
-    case absl::StatusCode::kResourceExhausted: return v1::REJECTION_OVER_CAP;
-    case absl::StatusCode::kAlreadyExists: return v1::REJECTION_DUPLICATE;
-    default: return v1::REJECTION_INVALID;
-  }
-}
+const metrics::Family kOpenStreams{"imca_learner_unroll_streams", metrics::Type::kGauge,
+                                   "PushUnrolls streams open: the actors connected."};
+const metrics::Family kWaitingPolls{"imca_learner_policy_polls_waiting", metrics::Type::kGauge,
+                                    "GetPolicy calls waiting for a newer policy version."};
+
+// Adds 1 to `gauge` for its lifetime.
+class GaugeHold {
+ public:
+  explicit GaugeHold(metrics::Gauge& gauge) : gauge_(gauge) { gauge_.Add(1); }
+  ~GaugeHold() { gauge_.Add(-1); }
+
+ private:
+  metrics::Gauge& gauge_;
+};
 
 }  // namespace
+
+LearnerServiceImpl::LearnerServiceImpl(Learner* learner, int max_streams)
+    : learner_(learner),
+      max_streams_(max_streams),
+      streams_(max_streams),
+      waiters_(max_streams),
+      open_streams_(registry_.AddGauge(kOpenStreams)),
+      waiting_polls_(registry_.AddGauge(kWaitingPolls)) {}
 
 v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version) {
   v1::PushUnrollsResponse ack;
@@ -44,6 +55,7 @@ grpc::Status LearnerServiceImpl::PushUnrolls(
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                         absl::StrCat("the learner serves at most ", max_streams_, " unroll streams at once (--max_streams)"));
   }
+  const GaugeHold open(open_streams_);
   v1::PushUnrollsRequest request;
   bool first = true;
   while (stream->Read(&request)) {
@@ -78,6 +90,7 @@ grpc::Status LearnerServiceImpl::GetPolicy(grpc::ServerContext*, const v1::GetPo
                           absl::StrCat("the learner holds at most ", max_streams_,
                                        " waiting GetPolicy calls at once (--max_streams)"));
     }
+    const GaugeHold waiting(waiting_polls_);
     policy = learner_->WaitForPolicy(request->min_version(), absl::Milliseconds(request->wait_ms()));
   }
   if (policy->version() >= request->min_version()) {

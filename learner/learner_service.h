@@ -2,6 +2,7 @@
 #define IMCA_LEARNER_LEARNER_SERVICE_H_
 
 #include "common/admission.h"
+#include "common/metrics.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "learner/learner.h"
 
@@ -24,8 +25,7 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
  public:
   static constexpr int kDefaultMaxStreams = 256;
 
-  explicit LearnerServiceImpl(Learner* learner, int max_streams = kDefaultMaxStreams)
-      : learner_(learner), max_streams_(max_streams), streams_(max_streams), waiters_(max_streams) {}
+  explicit LearnerServiceImpl(Learner* learner, int max_streams = kDefaultMaxStreams);
 
   grpc::Status PushUnrolls(
       grpc::ServerContext* context,
@@ -35,11 +35,18 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
   grpc::Status GetStatus(grpc::ServerContext* context, const v1::GetStatusRequest* request,
                          v1::LearnerStatus* response) override;
 
+  // The service's Prometheus families: unroll streams open (the actors
+  // connected) and GetPolicy calls waiting.
+  const metrics::Registry& metrics() const { return registry_; }
+
  private:
   Learner* learner_;
   const int max_streams_;
   ConcurrencyLimiter streams_;  // PushUnrolls streams.
   ConcurrencyLimiter waiters_;  // GetPolicy calls that wait.
+  metrics::Registry registry_;
+  metrics::Gauge& open_streams_;
+  metrics::Gauge& waiting_polls_;
 };
 
 }  // namespace imca::learner

@@ -12,10 +12,15 @@
 #include "common/atomic_file.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
+#include "common/json.h"
+#include "common/metrics_flags.h"
+#include "common/rpc_metrics.h"
 #include "common/scenario_flags.h"
 #include "common/transport_flags.h"
+#include "common/unroll_check.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
+#include "learner/ppo_trainer.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50052", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
@@ -113,6 +118,9 @@ ABSL_FLAG(std::string, trained_log, "",
           "if set, append a CSV row per trained unroll (iteration, actor_id, incarnation, sequence, policy_version)");
 ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor)");
+ABSL_FLAG(bool, list, false,
+          "print this binary's choices and limits (scenarios, algorithms, metrics.csv columns, caps) as JSON and "
+          "exit: what the Python tools ask instead of copying them");
 ABSL_FLAG(int, signal_exit_code, 0,
           "exit code when SIGINT/SIGTERM stops training before the budget (Kubernetes Jobs: 143, "
           "so that an evicted learner is replaced rather than counted as finished)");
@@ -124,12 +132,37 @@ int Fail(const std::string& message) {
   return 2;
 }
 
+// --list: one JSON object.
+std::string ListJson() {
+  using namespace imca;
+  std::string columns;
+  for (const learner::Column& c : learner::IterationColumns()) {
+    absl::StrAppend(&columns, columns.empty() ? "" : ",\n    ", "{\"name\": ", JsonString(c.name),
+                    ", \"help\": ", JsonString(c.help),
+                    ", \"prometheus\": ", c.family != nullptr ? JsonString(c.family) : "null", "}");
+  }
+  return absl::StrCat("{\"program\": \"learner\",\n \"scenarios\": ", JsonStrings(env::ScenarioNames()),
+                      ",\n \"algos\": ", JsonStrings(learner::AlgoNames()),
+                      ",\n \"objectives\": ", JsonStrings(learner::PpoObjectiveNames()),
+                      ",\n \"critic_inputs\": ", JsonStrings(learner::CriticInputNames()),
+                      ",\n \"time_limits\": ", JsonStrings(learner::TimeLimitNames()),
+                      ",\n \"success_window\": ", kDefaults.metrics_window,
+                      ",\n \"max_actor_ids\": ", kDefaults.max_actor_ids,
+                      ",\n \"max_unroll_transitions\": ", kMaxTransitions,
+                      ",\n \"exit_refused\": ", kExitRefused,
+                      ",\n \"metrics_columns\": [\n    ", columns, "]}\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA learner: multi-agent PPO or MADDPG over gRPC");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
+  if (absl::GetFlag(FLAGS_list)) {
+    std::fputs(ListJson().c_str(), stdout);
+    return 0;
+  }
 
   if (absl::GetFlag(FLAGS_linger_seconds) < 0) return Fail("--linger_seconds must be >= 0");
   if (const int code = absl::GetFlag(FLAGS_signal_exit_code); code < 0 || code > 255) {
@@ -237,6 +270,12 @@ int main(int argc, char** argv) {
   }
 
   learner::LearnerServiceImpl service(learner->get(), max_streams);
+  metrics::Registry process;
+  metrics::AddProcessMetrics(&process);
+  RpcMetrics rpc_metrics(RpcMetrics::Side::kServer, {v1::LearnerService::service_full_name()}, &process);
+  server_options->rpc_metrics = &rpc_metrics;
+  auto metrics_server = StartMetricsFromFlags("learner", {&process, &(*learner)->metrics(), &service.metrics()});
+  if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;
   auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);

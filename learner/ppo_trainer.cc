@@ -710,6 +710,7 @@ constexpr EnumName<PpoObjective> kObjectiveNames[] = {{PpoObjective::kBehaviour,
 }  // namespace
 
 std::string PpoObjectiveName(PpoObjective objective) { return NameOf(objective, kObjectiveNames); }
+std::vector<std::string> PpoObjectiveNames() { return Names(kObjectiveNames); }
 
 absl::StatusOr<PpoObjective> ParsePpoObjective(const std::string& name) {
   return ParseName(name, kObjectiveNames);

@@ -31,6 +31,7 @@ enum class PpoObjective {
 
 // "behaviour" / "decoupled".
 std::string PpoObjectiveName(PpoObjective objective);
+std::vector<std::string> PpoObjectiveNames();
 // Errors: INVALID_ARGUMENT naming the accepted values.
 absl::StatusOr<PpoObjective> ParsePpoObjective(const std::string& name);
 

@@ -4,44 +4,29 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "common/enum_names.h"
 
 namespace imca::reward {
 
-absl::StatusOr<Credit> ParseCredit(absl::string_view name) {
-  if (name == "none") return Credit::kNone;
-  if (name == "independent") return Credit::kIndependent;
-  if (name == "shared") return Credit::kShared;
-  if (name == "imca") return Credit::kImca;
-  return absl::InvalidArgumentError(
-      absl::StrCat("credit '", name, "' is not one of none|independent|shared|imca"));
-}
+namespace {
 
+constexpr EnumName<Credit> kCreditNames[] = {{Credit::kNone, "none"},
+                                             {Credit::kIndependent, "independent"},
+                                             {Credit::kShared, "shared"},
+                                             {Credit::kImca, "imca"}};
+constexpr EnumName<Permutation> kPermutationNames[] = {
+    {Permutation::kOff, "off"}, {Permutation::kRandom, "random"}, {Permutation::kCanonical, "canonical"}};
+
+}  // namespace
+
+absl::StatusOr<Credit> ParseCredit(absl::string_view name) { return ParseName(std::string(name), kCreditNames); }
 absl::StatusOr<Permutation> ParsePermutation(absl::string_view name) {
-  if (name == "off") return Permutation::kOff;
-  if (name == "random") return Permutation::kRandom;
-  if (name == "canonical") return Permutation::kCanonical;
-  return absl::InvalidArgumentError(
-      absl::StrCat("permutation '", name, "' is not one of off|random|canonical"));
+  return ParseName(std::string(name), kPermutationNames);
 }
-
-absl::string_view CreditName(Credit credit) {
-  switch (credit) {
-    case Credit::kNone: return "none";
-    case Credit::kIndependent: return "independent";
-    case Credit::kShared: return "shared";
-    case Credit::kImca: return "imca";
-  }
-  return "?";
-}
-
-absl::string_view PermutationName(Permutation permutation) {
-  switch (permutation) {
-    case Permutation::kOff: return "off";
-    case Permutation::kRandom: return "random";
-    case Permutation::kCanonical: return "canonical";
-  }
-  return "?";
-}
+std::string CreditName(Credit credit) { return NameOf(credit, kCreditNames); }
+std::string PermutationName(Permutation permutation) { return NameOf(permutation, kPermutationNames); }
+std::vector<std::string> CreditNames() { return Names(kCreditNames); }
+std::vector<std::string> PermutationNames() { return Names(kPermutationNames); }
 
 void SoftmaxShares(const float* contributions, int n, double temperature, float* shares) {
   double max = contributions[0] / temperature;

@@ -3,6 +3,8 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
+
 #include "absl/strings/string_view.h"
 
 #include "absl/status/statusor.h"
@@ -18,8 +20,11 @@ enum class Permutation { kOff, kRandom, kCanonical };
 // Errors: INVALID_ARGUMENT naming the value and the choices.
 absl::StatusOr<Credit> ParseCredit(absl::string_view name);
 absl::StatusOr<Permutation> ParsePermutation(absl::string_view name);
-absl::string_view CreditName(Credit credit);
-absl::string_view PermutationName(Permutation permutation);
+std::string CreditName(Credit credit);
+std::string PermutationName(Permutation permutation);
+// Every credit and permutation mode's name (reward_server --list).
+std::vector<std::string> CreditNames();
+std::vector<std::string> PermutationNames();
 
 struct ScorerConfig {
   Credit credit = Credit::kImca;

@@ -12,6 +12,9 @@
 #include "common/atomic_file.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
+#include "common/json.h"
+#include "common/metrics_flags.h"
+#include "common/rpc_metrics.h"
 #include "common/scenario_flags.h"
 #include "common/transport_flags.h"
 #include "reward_server/make_scorer.h"
@@ -19,7 +22,7 @@
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
-ABSL_FLAG(std::string, reward, "count", "reward kind: count|rnd|sf|eiti|edti");
+ABSL_FLAG(std::string, reward, "count", "reward kind: count|rnd|sf|eiti|edti (--list)");
 ABSL_FLAG(double, eta, 10.0, "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)");
 ABSL_FLAG(double, beta_t, 10.0, "eiti: coefficient of the summed influence c_{i->j}");
 ABSL_FLAG(bool, influence_log, false,
@@ -47,6 +50,9 @@ ABSL_FLAG(int, max_inflight, imca::reward::ServiceLimits{}.max_inflight,
           "Score calls served at once; more end with RESOURCE_EXHAUSTED (the actor retries)");
 ABSL_FLAG(int, max_inflight_per_actor, imca::reward::ServiceLimits{}.max_inflight_per_actor,
           "Score calls of one actor id served at once, so that one flooding client cannot starve the rest");
+ABSL_FLAG(bool, list, false,
+          "print this binary's choices (scenarios, reward kinds with the credit modes each serves, permutation "
+          "modes) as JSON and exit: what the Python tools ask instead of copying them");
 ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor)");
 
@@ -55,6 +61,28 @@ namespace {
 int Fail(const std::string& message) {
   std::fprintf(stderr, "reward_server: %s\n", message.c_str());
   return 2;
+}
+
+// --list: one JSON object. Each reward kind is built on `scenario` to ask
+// which credit modes it serves.
+int List(const imca::env::Scenario& scenario) {
+  using namespace imca;
+  std::string rewards;
+  for (const std::string& kind : reward::RewardKinds()) {
+    std::vector<std::string> credits;
+    for (const std::string& name : reward::CreditNames()) {
+      reward::ScorerConfig config;
+      config.credit = *reward::ParseCredit(name);
+      if (reward::MakeScorer(kind, scenario, config, {}).ok()) credits.push_back(name);
+    }
+    absl::StrAppend(&rewards, rewards.empty() ? "" : ", ", JsonString(kind), ": ", JsonStrings(credits));
+  }
+  std::printf("%s", absl::StrCat("{\"program\": \"reward_server\",\n \"scenarios\": ",
+                                 JsonStrings(env::ScenarioNames()), ",\n \"rewards\": {", rewards, "}",
+                                 ",\n \"credits\": ", JsonStrings(reward::CreditNames()),
+                                 ",\n \"permutations\": ", JsonStrings(reward::PermutationNames()), "}\n")
+                        .c_str());
+  return 0;
 }
 
 }  // namespace
@@ -66,6 +94,7 @@ int main(int argc, char** argv) {
 
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
+  if (absl::GetFlag(FLAGS_list)) return List(**scenario);
   absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
   if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
 
@@ -116,6 +145,12 @@ int main(int argc, char** argv) {
   if (limits.max_inflight < 1) return Fail("--max_inflight must be >= 1");
   if (limits.max_inflight_per_actor < 1) return Fail("--max_inflight_per_actor must be >= 1");
   reward::RewardServiceImpl service(scenario->get(), scorer.get(), kind, config, snapshot, limits);
+  metrics::Registry process;
+  metrics::AddProcessMetrics(&process);
+  RpcMetrics rpc_metrics(RpcMetrics::Side::kServer, {v1::RewardService::service_full_name()}, &process);
+  server_options->rpc_metrics = &rpc_metrics;
+  auto metrics_server = StartMetricsFromFlags("reward_server", {&process, &service.metrics()});
+  if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;
   auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);

@@ -22,7 +22,36 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
       config_(config),
       snapshot_path_(std::move(snapshot_path)),
       inflight_(limits.max_inflight, limits.max_inflight_per_actor),
-      max_tracked_actors_(limits.max_tracked_actors) {}
+      max_tracked_actors_(limits.max_tracked_actors) {
+  struct Exported {
+    metrics::Family family;
+    int64_t (v1::RewardStats::*value)() const;
+  };
+  static const Exported kExported[] = {
+      {{"imca_reward_transitions_scored_total", metrics::Type::kCounter,
+        "Transitions scored (count kinds: since the tables began, restarts included)."},
+       &v1::RewardStats::transitions_scored},
+      {{"imca_reward_requests_total", metrics::Type::kCounter, "Score requests answered."},
+       &v1::RewardStats::requests_served},
+      {{"imca_reward_requests_rejected_total", metrics::Type::kCounter,
+        "Score requests refused (invalid, over a bound, or while stopping)."},
+       &v1::RewardStats::requests_rejected},
+      {{"imca_reward_requests_repeated_total", metrics::Type::kCounter,
+        "Score requests repeating an already scored sequence (answered, not counted again)."},
+       &v1::RewardStats::requests_repeated},
+      {{"imca_reward_table_entries", metrics::Type::kGauge, "Keys in the global count table (count kinds)."},
+       &v1::RewardStats::distinct_keys},
+      {{"imca_reward_local_table_entries", metrics::Type::kGauge,
+        "Keys in the per-agent count tables (count kinds)."},
+       &v1::RewardStats::distinct_local_keys},
+      {{"imca_reward_model_updates_total", metrics::Type::kCounter,
+        "Optimiser steps of the learned novelty models (rnd, sf)."},
+       &v1::RewardStats::model_updates},
+  };
+  for (const Exported& e : kExported) {
+    registry_.AddCallback(e.family, [this, value = e.value] { return static_cast<double>((Stats().*value)()); });
+  }
+}
 
 grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                                       v1::ScoreResponse* response) {

@@ -11,6 +11,7 @@
 #include "absl/synchronization/mutex.h"
 #include "common/admission.h"
 #include "common/env.h"
+#include "common/metrics.h"
 #include "imca/v1/reward_service.grpc.pb.h"
 #include "reward_server/credit.h"
 #include "reward_server/scorer.h"
@@ -54,6 +55,11 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   // After this, Score answers UNAVAILABLE (used while draining at shutdown).
   void StopAccepting() { accepting_.store(false); }
 
+  // The reward server's Prometheus families (docs/metrics.md), read from
+  // Stats() at each scrape: transitions scored, requests served, rejected
+  // and repeated, table entries, model updates.
+  const metrics::Registry& metrics() const { return registry_; }
+
  private:
   const env::Scenario* scenario_;
   Scorer* scorer_;
@@ -71,6 +77,7 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   const size_t max_tracked_actors_;
   absl::Mutex scored_mu_;
   absl::flat_hash_map<std::string, std::pair<uint64_t, int64_t>> last_scored_ ABSL_GUARDED_BY(scored_mu_);
+  metrics::Registry registry_;
 };
 
 }  // namespace imca::reward

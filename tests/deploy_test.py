@@ -406,7 +406,7 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                    and d["spec"]["template"]["spec"]["containers"][0]["command"] == ["actor"])
         rules = job["spec"]["podFailurePolicy"]["rules"]
         self.assertIn({"action": "FailJob", "onExitCodes": {"containerName": "actor", "operator": "In",
-                                                            "values": [launch.EXIT_REFUSED]}}, rules)
+                                                            "values": [launch.exit_refused()]}}, rules)
 
     def test_actor_job_has_no_completion_count(self):
         # Work-queue style: the Job ends when the actors exit after the budget,

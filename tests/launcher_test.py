@@ -147,7 +147,7 @@ class LauncherRunTest(unittest.TestCase):
             # The windows fill up as episodes end, never beyond their size.
             fills = [int(r["train_success_episodes"]) for r in rows]
             self.assertEqual(fills, sorted(fills))
-            self.assertLessEqual(fills[-1], launch.SUCCESS_WINDOW)
+            self.assertLessEqual(fills[-1], launch.facts()["success_window"])
             self.assertGreater(max(float(r["intrinsic_reward"]) for r in rows), 0.0)
             with open(os.path.join(out, "summary.json")) as f:
                 summary = json.load(f)

@@ -37,7 +37,6 @@ AXES = {"scenario": "--scenario", "reward": "--reward", "credit": "--credit", "p
 # ./imca train flags that a grid's "flags" may not set: the axes, and what
 # the runner itself controls.
 RESERVED_FLAGS = set(AXES) | {"out", "resume", "quiet", "reward-port", "learner-port"}
-IMCA_PERMUTATIONS = ["off", "random", "canonical"]
 BASELINES = ["none", "independent", "shared"]
 
 
@@ -49,7 +48,7 @@ def pairing(scenario, reward, steps, seeds, maddpg=False):
     entries = [{"scenario": scenario, "reward": reward, "credit": BASELINES, "permutation": "off",
                 "seed": seeds, "steps": steps},
                {"scenario": scenario, "reward": reward, "credit": "imca",
-                "permutation": "off" if reward == "sf" else IMCA_PERMUTATIONS, "seed": seeds, "steps": steps}]
+                "permutation": "off" if reward == "sf" else launch.facts()["permutations"], "seed": seeds, "steps": steps}]
     if maddpg:
         entries.append(maddpg_rows(scenario, reward, steps, seeds))
     return entries
@@ -129,8 +128,9 @@ def expand(entries, where):
         values = {key: as_list(entry.get(key, default)) for key, default in
                   (("scenario", None), ("reward", None), ("credit", None), ("permutation", "off"),
                    ("seed", 1), ("steps", 2_000_000))}
-        for key, allowed in (("scenario", launch.SCENARIOS), ("reward", launch.REWARDS),
-                             ("credit", launch.CREDITS), ("permutation", launch.PERMUTATIONS)):
+        known = launch.facts()
+        for key, allowed in (("scenario", known["scenarios"]), ("reward", list(known["rewards"])),
+                             ("credit", known["credits"]), ("permutation", known["permutations"])):
             for v in values[key]:
                 if v not in allowed:
                     raise ExperimentError(f"{name}: {key} '{v}' is not one of {', '.join(allowed)}")
@@ -166,7 +166,7 @@ def labeller(cells):
     def method(cell):
         # EITI and EDTI are methods of their own (their per-agent bonus is
         # the method), named by their reward kind.
-        per_agent = cell["reward"] in launch.PER_AGENT_REWARDS and cell["credit"] == "independent"
+        per_agent = launch.per_agent_reward(cell["reward"]) and cell["credit"] == "independent"
         label = cell["reward"] if per_agent else cell["credit"]
         if cell["permutation"] != "off":
             label += f"/{cell['permutation']}"

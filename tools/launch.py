@@ -9,6 +9,7 @@ leaves a valid run folder.
 import argparse
 import csv
 import datetime
+import functools
 import json
 import os
 import signal
@@ -18,22 +19,46 @@ import time
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-SCENARIOS = ["coop_nav", "predator_prey", "multi_room", "twin_buttons", "pass", "secret_room", "spread"]
-REWARDS = ["count", "rnd", "sf", "eiti", "edti"]
-# Reward kinds whose per-agent bonus is the method itself (BASELINES.md 1):
-# they run with credit independent (or none) and beta 1, their own
-# coefficients (--eta, --beta-t) setting the scale.
-PER_AGENT_REWARDS = ["eiti", "edti"]
-CREDITS = ["none", "independent", "shared", "imca"]
-ALGOS = ["mappo", "maddpg"]
-PERMUTATIONS = ["off", "random", "canonical"]
-# A client whose credentials a server refused exits with this (kExitRefused,
-# common/transport.h): restarting it would be refused again.
-EXIT_REFUSED = 3
+PROGRAMS = ("reward_server", "learner", "actor")
 
 
 class LaunchError(Exception):
     """A one-line, user-facing error."""
+
+
+@functools.lru_cache(maxsize=None)
+def facts():
+    """What the binaries say of themselves (`<binary> --list`): scenarios,
+    reward kinds and the credit modes each serves, permutations, algorithms,
+    the metrics.csv columns, caps and exit codes. Defined once, in C++; the
+    tools ask instead of copying them. One dict, the three programs' merged."""
+    merged = {}
+    for program in PROGRAMS:
+        path = os.path.join(BIN, program)
+        try:
+            out = subprocess.run([path, "--list"], capture_output=True, text=True, timeout=120)
+        except (OSError, subprocess.SubprocessError) as e:
+            raise LaunchError(f"cannot run {path} --list ({e}); build first: ./imca build") from e
+        if out.returncode != 0:
+            raise LaunchError(f"{path} --list failed (exit {out.returncode}): {out.stderr.strip()}")
+        for key, value in json.loads(out.stdout).items():
+            if key != "program":
+                merged[key] = value
+    return merged
+
+
+def per_agent_reward(reward):
+    """True for the reward kinds whose per-agent bonus is the method itself
+    (EITI, EDTI; BASELINES.md 1): they serve no shared or imca credit, and run
+    with credit independent (or none) and beta 1, their own coefficients
+    (--eta, --beta-t) setting the scale."""
+    return "imca" not in facts()["rewards"][reward]
+
+
+def exit_refused():
+    """The exit code of a client whose credentials a server refused
+    (kExitRefused): restarting it would be refused again."""
+    return facts()["exit_refused"]
 
 
 def positive_int(text):
@@ -119,8 +144,9 @@ class OneLineParser(argparse.ArgumentParser):
 def parse_args(argv):
     p = OneLineParser(prog="imca train", description=__doc__,
                       formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scenario", default="coop_nav", choices=SCENARIOS)
-    p.add_argument("--algo", default="mappo", choices=ALGOS,
+    known = facts()
+    p.add_argument("--scenario", default="coop_nav", choices=known["scenarios"])
+    p.add_argument("--algo", default="mappo", choices=known["algos"],
                    help="mappo (on-policy PPO) or maddpg (off-policy; docs/learner.md)")
     p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
     p.add_argument("--num-agents", type=int, default=0, help="agents (0: the scenario default)")
@@ -128,10 +154,10 @@ def parse_args(argv):
     p.add_argument("--view-radius", type=int, default=0, help="partial observation radius (0: full)")
     p.add_argument("--door-timer", type=int, default=-1,
                    help="door scenarios: EDTI's door-open interval doi (-1: the scenario default; docs/scenarios.md)")
-    p.add_argument("--reward", default="count", choices=REWARDS, help="global novelty kind")
-    p.add_argument("--credit", default=None, choices=CREDITS,
+    p.add_argument("--reward", default="count", choices=list(known["rewards"]), help="global novelty kind")
+    p.add_argument("--credit", default=None, choices=known["credits"],
                    help="credit mode (default imca; independent for eiti and edti)")
-    p.add_argument("--permutation", default="off", choices=PERMUTATIONS)
+    p.add_argument("--permutation", default="off", choices=known["permutations"])
     p.add_argument("--beta", type=float, default=None, help="coefficient of the global bonus (default 0.5; 1 for eiti, edti)")
     p.add_argument("--eta", type=float, default=10.0, help="eiti, edti: coefficient of the decentralised curiosity")
     p.add_argument("--beta-t", type=float, default=10.0, help="eiti: coefficient of the summed influence")
@@ -161,6 +187,10 @@ def parse_args(argv):
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
     p.add_argument("--reward-port", type=int, default=0, help="reward server port (0: a free one)")
     p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
+    p.add_argument("--metrics-port", type=int, default=0, metavar="N",
+                   help="serve Prometheus metrics on 127.0.0.1: the reward server on N, the learner on N+1, "
+                        "actor i on N+2+i; writes <run>/prometheus.yml to scrape them (0: no endpoints; "
+                        "docs/metrics.md)")
     p.add_argument("--resume", default="", metavar="RUN_DIR",
                    help="continue a stopped run in RUN_DIR with its saved config; --steps is the total budget")
     p.add_argument("--max-restarts", type=int, default=5,
@@ -202,7 +232,7 @@ def parse_args(argv):
     if args.algo == "maddpg":
         if args.reward == "edti":
             p.error("argument --algo: edti's value of interaction is a MAPPO value head; use --algo mappo")
-    per_agent = args.reward in PER_AGENT_REWARDS
+    per_agent = per_agent_reward(args.reward)
     if args.credit is None:
         args.credit = "independent" if per_agent else "imca"
     if per_agent and args.credit not in ("none", "independent"):
@@ -219,8 +249,11 @@ def parse_args(argv):
     for flag in ("num_agents", "step_limit", "view_radius"):
         if getattr(args, flag) < 0:
             p.error(f"argument --{flag.replace('_', '-')}: must be >= 0")
-    if not -1 <= args.door_timer <= 30:
-        p.error("argument --door-timer: must be in [0, 30] (or -1: the scenario default)")
+    if not -1 <= args.door_timer <= known["max_door_timer"]:
+        p.error(f"argument --door-timer: must be in [0, {known['max_door_timer']}] (or -1: the scenario default)")
+    if args.metrics_port and not 1 <= args.metrics_port <= 65535 - 1 - args.actors:
+        p.error(f"argument --metrics-port: must be in [1, {65535 - 1 - args.actors}] "
+                f"(it takes N .. N+{1 + args.actors}), or 0 for no endpoints")
     if args.max_restarts < 0:
         p.error("argument --max-restarts: must be >= 0")
     if args.stall_seconds < 10:
@@ -233,8 +266,8 @@ def parse_args(argv):
         p.error("argument --temperature: must be > 0")
     if args.map and not os.path.isfile(args.map):
         p.error(f"argument --map: no such file '{args.map}'")
-    if args.envs_per_actor * args.unroll_length > 65536:
-        p.error("--envs-per-actor * --unroll-length must be <= 65536")
+    if args.envs_per_actor * args.unroll_length > known["max_unroll_transitions"]:
+        p.error(f"--envs-per-actor * --unroll-length must be <= {known['max_unroll_transitions']}")
     if args.sync:
         per_round = args.actors * args.envs_per_actor * args.unroll_length
         if args.batch_steps % per_round != 0:
@@ -412,7 +445,7 @@ class Services:
             if code is not None and code in self.finished_codes[name]:
                 finished.append(name)
                 continue
-            if code == EXIT_REFUSED:
+            if code == exit_refused():
                 # A server refused its credentials: the same ones would be
                 # refused again, so no restart.
                 raise LaunchError(f"{name} was refused by a server (exit {code}): {self.last_log_line(name)}")
@@ -513,7 +546,6 @@ def progress_line(row, budget, restarts=0):
 # the episodes that end first are the short, successful ones, so a rate over
 # the first few is biased upwards. Runs written before the learner reported
 # the window have no such column and are read as before.
-SUCCESS_WINDOW = 200
 WINDOW_COLUMN = {"success_rate": "success_episodes", "train_success_rate": "train_success_episodes"}
 
 
@@ -521,7 +553,7 @@ def first_reaching(rows, threshold, key="success_rate"):
     """The first metrics row whose `key` is >= threshold over a full window (None if none)."""
     window = WINDOW_COLUMN.get(key)
     for row in rows:
-        if window in row and int(row[window]) < SUCCESS_WINDOW:
+        if window in row and int(row[window]) < facts()["success_window"]:
             continue
         if float(row[key]) >= threshold:
             return row
@@ -637,6 +669,34 @@ def secure_flags(run_dir, args):
     return server, actor
 
 
+def metrics_ports(args):
+    """--metrics-port's port of each process (an empty dict without it)."""
+    if not args.metrics_port:
+        return {}
+    ports = {"reward_server": args.metrics_port, "learner": args.metrics_port + 1}
+    for i in range(args.actors):
+        ports[f"actor-{i}"] = args.metrics_port + 2 + i
+    return ports
+
+
+def write_prometheus_config(run_dir, ports, scrape_interval="5s"):
+    """<run_dir>/prometheus.yml: a Prometheus configuration that scrapes the
+    run's endpoints (jobs reward_server, learner, actor) with the alert and
+    recording rules of deploy/prometheus/."""
+    jobs = {}
+    for name, port in ports.items():
+        jobs.setdefault(name.split("-")[0], []).append(f"127.0.0.1:{port}")
+    lines = ["# Written by ./imca train --metrics-port: prometheus --config.file=<this file>",
+             "global:", f"  scrape_interval: {scrape_interval}", f"  evaluation_interval: {scrape_interval}",
+             "rule_files:", f"  - {json.dumps(os.path.join(ROOT, 'deploy', 'prometheus', 'rules.yml'))}",
+             "scrape_configs:"]
+    for job, targets in jobs.items():
+        lines += [f"  - job_name: {job}", "    static_configs:",
+                  "      - targets: [" + ", ".join(json.dumps(t) for t in targets) + "]"]
+    with open(os.path.join(run_dir, "prometheus.yml"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
 def run(args):
     run_dir = args.out or os.path.join("runs", datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
     run_dir = os.path.abspath(run_dir)
@@ -653,6 +713,10 @@ def run(args):
                       f"--step_limit={args.step_limit}", f"--view_radius={args.view_radius}",
                       f"--door_timer={args.door_timer}"]
     server_tls, actor_tls = secure_flags(run_dir, args) if args.secure else ([], lambda i: [])
+    ports = metrics_ports(args)
+    metrics_flag = lambda name: [f"--metrics_listen=127.0.0.1:{ports[name]}"] if ports else []
+    if ports:
+        write_prometheus_config(run_dir, ports)
     services = Services(run_dir, max_restarts=args.max_restarts, stall_seconds=args.stall_seconds)
     rows = []
     interrupted = False
@@ -674,7 +738,8 @@ def run(args):
             f"--eta={args.eta}", f"--beta_t={args.beta_t}",
             f"--temperature={args.temperature}", f"--seed={args.seed}",
             f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}",
-            f"--snapshot_every={args.snapshot_every}", *server_tls, f"--listen=127.0.0.1:{args.reward_port}"],
+            f"--snapshot_every={args.snapshot_every}", *server_tls, *metrics_flag("reward_server"),
+            f"--listen=127.0.0.1:{args.reward_port}"],
             restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"],
             finished_codes=())  # It never finishes by itself: any exit is a death.
         reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
@@ -691,7 +756,7 @@ def run(args):
             f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
             f"--seed={args.seed}", f"--edti={str(args.reward == 'edti').lower()}"] + learner_option_flags(args)
             + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else [])
-            + server_tls + [f"--listen=127.0.0.1:{args.learner_port}"],
+            + server_tls + metrics_flag("learner") + [f"--listen=127.0.0.1:{args.learner_port}"],
             # From its newest checkpoint (none yet: from scratch).
             restart_args=lambda: [f"--listen=127.0.0.1:{learner_port[0]}", "--resume=", "--auto_resume=true"])
         learner_port.append(services.wait_port("learner", ln, learner_port_file, timeout=60))
@@ -707,7 +772,7 @@ def run(args):
                 f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
                 f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}", "--signal_exit_code=143",
                 # Its own wait for an ack gives up before the supervisor's.
-                f"--ack_timeout_ms={int(args.stall_seconds * 500)}"] + actor_tls(i)
+                f"--ack_timeout_ms={int(args.stall_seconds * 500)}"] + actor_tls(i) + metrics_flag(name)
                 + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else [])
                 + [f"--seed={args.seed * 1000 + i + 1}"],
                 restart_args=lambda name=name, i=i: [

@@ -1,0 +1,128 @@
+#include "learner/iteration_metrics.h"
+
+#include <cstdio>
+
+#include "absl/strings/str_cat.h"
+
+namespace imca::learner {
+
+using R = IterationRecord;
+
+const std::vector<Column>& IterationColumns() {
+  static const std::vector<Column> columns = {
+      {"iteration", "%.0f", 1, "Training iterations completed.", &R::iteration, Export::kCumulative,
+       "imca_learner_iterations_total"},
+      {"env_steps", "%.0f", 1, "Joint environment steps trained on.", &R::env_steps, Export::kCumulative,
+       "imca_learner_env_steps_total"},
+      {"wall_seconds", "%.3f", 1, "Seconds of training, earlier runs of a resumed one included.", &R::wall_seconds,
+       Export::kCsvOnly, nullptr},
+      {"env_steps_per_sec", "%.1f", 1, "env_steps / wall_seconds.", &R::env_steps_per_sec, Export::kCsvOnly, nullptr},
+      {"success_rate", "%.4f", 1, "Success rate over the recent evaluation episodes (window success_episodes).",
+       &R::success_rate, Export::kGauge, "imca_learner_eval_success_ratio"},
+      {"train_success_rate", "%.4f", 1, "Success rate over the recent training episodes.", &R::train_success_rate,
+       Export::kGauge, "imca_learner_train_success_ratio"},
+      {"episode_return", "%.4f", 1, "Mean team return of the recent training episodes.", &R::episode_return,
+       Export::kGauge, "imca_learner_episode_return"},
+      {"intrinsic_reward", "%.6g", 1, "Mean intrinsic reward per agent-step of the iteration's batch.",
+       &R::intrinsic_reward, Export::kGauge, "imca_learner_intrinsic_reward"},
+      {"share_max", "%.4f", 1, "Mean over transitions of the largest credit share max_a p^a.", &R::share_max,
+       Export::kGauge, "imca_learner_credit_share_max_ratio"},
+      {"policy_version", "%.0f", 1, "Version of the policy published after the iteration.", &R::policy_version,
+       Export::kGauge, "imca_learner_policy_version"},
+      {"policy_lag", "%.3f", 1, "Mean versions between an unroll's acting policy and the trained one.",
+       &R::policy_lag, Export::kCsvOnly, nullptr},
+      {"dropped_stale", "%.0f", 1, "Unrolls dropped as stale so far.", &R::dropped_stale, Export::kCsvOnly, nullptr},
+      {"policy_loss", "%.6g", 1, "PPO clipped policy loss of the iteration (MADDPG: actor loss).", &R::policy_loss,
+       Export::kGauge, "imca_learner_policy_loss"},
+      {"value_loss", "%.6g", 1, "Value loss of the iteration (MADDPG: critic loss).", &R::value_loss, Export::kGauge,
+       "imca_learner_value_loss"},
+      {"entropy", "%.6g", 1, "Mean policy entropy in nats.", &R::entropy, Export::kGauge, "imca_learner_entropy_nats"},
+      {"approx_kl", "%.6g", 1, "Approximate KL divergence of the update.", &R::approx_kl, Export::kGauge,
+       "imca_learner_approx_kl"},
+      {"clip_fraction", "%.4f", 1, "Share of samples whose ratio was clipped.", &R::clip_fraction, Export::kGauge,
+       "imca_learner_clip_fraction_ratio"},
+      {"behaviour_kl", "%.6g", 1, "KL divergence of the behaviour policy from the proximal one.", &R::behaviour_kl,
+       Export::kGauge, "imca_learner_behaviour_kl"},
+      {"ms_wait", "%.2f", 1e3, "Milliseconds the iteration waited for unrolls.", &R::wait, Export::kCsvOnly, nullptr},
+      {"ms_featurise", "%.2f", 1e3, "Milliseconds of featurising the batch (on the pushing threads).", &R::featurise,
+       Export::kCsvOnly, nullptr},
+      {"ms_values", "%.2f", 1e3, "Milliseconds of value predictions.", &R::values, Export::kCsvOnly, nullptr},
+      {"ms_gae", "%.2f", 1e3, "Milliseconds of GAE.", &R::gae, Export::kCsvOnly, nullptr},
+      {"ms_copy", "%.2f", 1e3, "Milliseconds of copying into the batch.", &R::copy, Export::kCsvOnly, nullptr},
+      {"ms_prepare", "%.2f", 1e3, "Milliseconds of preparing minibatches.", &R::prepare, Export::kCsvOnly, nullptr},
+      {"ms_forward", "%.2f", 1e3, "Milliseconds of forward passes.", &R::forward, Export::kCsvOnly, nullptr},
+      {"ms_backward", "%.2f", 1e3, "Milliseconds of backward passes.", &R::backward, Export::kCsvOnly, nullptr},
+      {"ms_optimizer", "%.2f", 1e3, "Milliseconds of optimiser steps.", &R::optimizer, Export::kCsvOnly, nullptr},
+      {"ms_publish", "%.2f", 1e3, "Milliseconds of publishing the policy.", &R::publish, Export::kCsvOnly, nullptr},
+      {"global_reward", "%.6g", 1, "Mean global intrinsic reward R_i per transition.", &R::global_reward,
+       Export::kGauge, "imca_learner_global_reward"},
+      {"contribution_abs", "%.6g", 1, "Mean |r^a| (or d^a) per agent-step.", &R::contribution_abs, Export::kCsvOnly,
+       nullptr},
+      {"success_episodes", "%.0f", 1, "Evaluation episodes success_rate is over.", &R::success_episodes,
+       Export::kCsvOnly, nullptr},
+      {"train_success_episodes", "%.0f", 1, "Training episodes train_success_rate is over.",
+       &R::train_success_episodes, Export::kCsvOnly, nullptr},
+      {"voi_reward", "%.6g", 1, "EDTI's mean value-of-interaction reward (--edti).", &R::voi_reward, Export::kCsvOnly,
+       nullptr},
+      {"updates", "%.0f", 1, "Gradient steps of the iteration.", &R::updates, Export::kIncrement,
+       "imca_learner_gradient_steps_total"},
+      {"replay_size", "%.0f", 1, "Transitions in the replay buffer (off-policy).", &R::replay_size, Export::kGauge,
+       "imca_learner_replay_transitions"},
+  };
+  return columns;
+}
+
+std::string CsvHeader(int num_agents) {
+  std::string header;
+  for (const Column& c : IterationColumns()) absl::StrAppend(&header, header.empty() ? "" : ",", c.name);
+  for (int a = 1; a <= num_agents; ++a) absl::StrAppend(&header, ",share_", a);
+  return header;
+}
+
+std::string CsvRow(const IterationRecord& record) {
+  std::string row;
+  char cell[64];
+  for (const Column& c : IterationColumns()) {
+    std::snprintf(cell, sizeof(cell), c.format, record.*c.value * c.scale);
+    absl::StrAppend(&row, row.empty() ? "" : ",", cell);
+  }
+  for (double p : record.shares) {
+    std::snprintf(cell, sizeof(cell), "%.4f", p);
+    absl::StrAppend(&row, ",", cell);
+  }
+  return row;
+}
+
+IterationExporter::IterationExporter(metrics::Registry* registry) : values_(IterationColumns().size()) {
+  const std::vector<Column>& columns = IterationColumns();
+  for (size_t i = 0; i < columns.size(); ++i) {
+    const Column& c = columns[i];
+    if (c.exported == Export::kCsvOnly) continue;
+    const metrics::Type type = c.exported == Export::kGauge ? metrics::Type::kGauge : metrics::Type::kCounter;
+    std::atomic<double>* value = &values_[i];
+    registry->AddCallback({c.family, type, c.help}, [value] { return value->load(std::memory_order_relaxed); });
+  }
+}
+
+void IterationExporter::Publish(const IterationRecord& record) {
+  const std::vector<Column>& columns = IterationColumns();
+  for (size_t i = 0; i < columns.size(); ++i) {
+    const double v = record.*columns[i].value;
+    switch (columns[i].exported) {
+      case Export::kCsvOnly:
+        break;
+      case Export::kGauge:
+      case Export::kCumulative:
+        values_[i].store(v, std::memory_order_relaxed);
+        break;
+      case Export::kIncrement: {
+        double old = values_[i].load(std::memory_order_relaxed);
+        while (v > 0 && !values_[i].compare_exchange_weak(old, old + v, std::memory_order_relaxed)) {
+        }
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace imca::learner
