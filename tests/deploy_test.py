@@ -14,11 +14,13 @@ leave its snapshot, and a restarted learner must continue from its checkpoint.
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
 import unittest
+import urllib.request
 
 import yaml
 
@@ -60,11 +62,34 @@ def flags_of(binary):
     return set(re.findall(r"^\s+--([a-z_0-9]+)", out.stdout + out.stderr, re.M))
 
 
-def load_compose():
+def load_compose_doc():
     with open(COMPOSE) as f:
-        doc = yaml.safe_load(f)
+        return yaml.safe_load(f)
+
+
+def check_prometheus_config(path):
+    """promtool check config of `path`, with deploy/prometheus/rules.yml
+    beside it as the deployments mount it; returns the parsed config."""
+    with tempfile.TemporaryDirectory() as tmp:
+        shutil.copy(path, os.path.join(tmp, "prometheus.yml"))
+        shutil.copy(os.path.join(ROOT, "deploy", "prometheus", "rules.yml"), tmp)
+        r = subprocess.run(["promtool", "check", "config", os.path.join(tmp, "prometheus.yml")],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stdout + r.stderr
+    with open(path) as f:
+        return yaml.safe_load(f)
+
+
+def metrics_port(service):
+    return int(service.flag("metrics_listen").rsplit(":", 1)[1])
+
+
+def load_compose():
+    doc = load_compose_doc()
     services = {}
     for name, spec in doc["services"].items():
+        if spec.get("image") != "imca:latest":
+            continue  # Not ours: the prometheus service (ComposeTest checks it apart).
         command = spec["command"]
         command = shlex.split(command) if isinstance(command, str) else command
         mounts = [v.split(":")[1] for v in spec.get("volumes", [])]
@@ -167,6 +192,8 @@ class Deployment:
                 out.append(f"--port_file={os.path.join(self.tmp, service.binary + '.port')}")
             elif name in ("learner", "reward_server"):
                 arg = f"--{name}=127.0.0.1:{self.ports[name]}"
+            elif name == "metrics_listen":
+                arg = "--metrics_listen=127.0.0.1:0"  # Every process here shares one address.
             elif name == "steps":
                 arg = f"--steps={steps}"
             elif value.startswith("/"):
@@ -185,7 +212,21 @@ class Deployment:
         proc = self.procs.start(name, [os.path.join(BIN, binary)] + self.local_args(service, steps))
         if service.flag("listen"):
             self.ports[binary] = self.procs.wait_port(name, proc, port_file, timeout=60)
+        if service.flag("metrics_listen"):
+            self.check_metrics(name)
         return proc
+
+    def check_metrics(self, name):
+        """The process serves Prometheus metrics where its log says."""
+        deadline = time.time() + 30
+        while not (m := re.search(r"metrics on (http://\S+/metrics)", self.log(name))):
+            if time.time() > deadline:
+                raise AssertionError(f"{name}: no metrics endpoint in its log:\n{self.log(name)}")
+            time.sleep(0.1)
+        with urllib.request.urlopen(m.group(1), timeout=10) as r:
+            text = r.read().decode()
+        if "process_resident_memory_bytes" not in text:
+            raise AssertionError(f"{name}: {m.group(1)} serves no process metrics:\n{text[:500]}")
 
     def probe(self, command):
         """Runs a probe command (imca_health) as the kubelet would, made local."""
@@ -327,6 +368,26 @@ class ComposeTest(DeployTestBase, unittest.TestCase):
             self.assertIn(host, self.services, f"actor --{target}")
             self.assertEqual(int(port), listen_port(self.services[host]), f"actor --{target}")
 
+    def test_prometheus_scrapes_every_service_where_it_serves_metrics(self):
+        prometheus = load_compose_doc()["services"]["prometheus"]
+        mounts = dict(v.rsplit(":", 2)[:2] for v in prometheus["volumes"] if v.startswith("./"))
+        self.assertEqual(mounts, {"./prometheus/compose.yml": "/etc/prometheus/prometheus.yml",
+                                  "./prometheus/rules.yml": "/etc/prometheus/rules.yml"})
+        self.assertIn("--config.file=/etc/prometheus/prometheus.yml", prometheus["command"])
+        config = check_prometheus_config(os.path.join(ROOT, "deploy", "prometheus", "compose.yml"))
+        jobs = {j["job_name"]: j for j in config["scrape_configs"]}
+        self.assertEqual(set(jobs), {"reward_server", "learner", "actor"})
+        by = by_binary(self.services)
+        for job, scrape in jobs.items():
+            service = by[job]
+            if "static_configs" in scrape:
+                targets = [t for c in scrape["static_configs"] for t in c["targets"]]
+                self.assertEqual(targets, [f"{service.name}:{metrics_port(service)}"], job)
+            else:  # Every replica, through Docker's DNS.
+                (sd,) = scrape["dns_sd_configs"]
+                self.assertEqual((sd["names"], sd["port"]), ([service.name], metrics_port(service)), job)
+            self.assertEqual(service.flag("metrics_listen").rsplit(":", 1)[0], "0.0.0.0", job)
+
 
 class KubernetesTest(DeployTestBase, unittest.TestCase):
     @classmethod
@@ -360,6 +421,32 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                     command = container[probe]["exec"]["command"]
                     self.assertEqual(command[0], "imca_health", f"{host} {probe}")
                     self.assertIn(f"--target=127.0.0.1:{number}", command, f"{host} {probe}")
+
+    def test_prometheus_scrapes_every_workload_where_it_serves_metrics(self):
+        config = check_prometheus_config(os.path.join(K8S_DIR, "prometheus-scrape.yml"))
+        services = {d["metadata"]["name"]: d for d in self.docs if d["kind"] == "Service"}
+        jobs = {j["job_name"]: j for j in config["scrape_configs"]}
+        self.assertEqual(set(jobs), {"reward_server", "learner", "actor"})
+        for job, scrape in jobs.items():
+            (sd,) = scrape["dns_sd_configs"]
+            (name,) = sd["names"]
+            svc = services[name]["spec"]
+            self.assertEqual(svc.get("clusterIP"), "None", f"{name}: not headless (one address, not every pod)")
+            selected = [(doc, c) for doc, c in pod_templates(self.docs)
+                        if svc["selector"].items() <= doc["spec"]["template"]["metadata"]["labels"].items()]
+            self.assertEqual(len(selected), 1, name)
+            doc, container = selected[0]
+            service = self.services[doc["metadata"]["name"]]
+            self.assertEqual(service.binary, job)
+            port = metrics_port(service)
+            self.assertEqual(service.flag("metrics_listen").rsplit(":", 1)[0], "0.0.0.0", job)
+            self.assertEqual(sd["port"], port, job)
+            self.assertIn({"name": "metrics", "containerPort": port}, container["ports"], job)
+            (svc_port,) = svc["ports"]
+            self.assertEqual((svc_port["port"], svc_port["targetPort"]), (port, "metrics"), name)
+            annotations = doc["spec"]["template"]["metadata"]["annotations"]
+            self.assertEqual(annotations, {"prometheus.io/scrape": "true", "prometheus.io/port": str(port),
+                                           "prometheus.io/path": "/metrics", "prometheus.io/job": job}, job)
 
     def test_workloads_select_their_pods_and_claims_exist(self):
         # The claims live apart so that deleting the workloads keeps the state.
