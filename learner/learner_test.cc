@@ -11,6 +11,7 @@
 #include "common/env.h"
 #include "common/featurizer.h"
 #include "common/test_unrolls.h"
+#include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 
@@ -149,6 +150,57 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
     EXPECT_EQ(a.tensors(i).data().size(), b.tensors(i).data().size());
     EXPECT_TRUE(std::equal(a.tensors(i).data().begin(), a.tensors(i).data().end(), b.tensors(i).data().begin()));
   }
+}
+
+// The value of one series line ("name{labels}") of an exposition; -1 if absent.
+double Sample(const std::string& text, const std::string& series) {
+  const std::string key = "\n" + series + " ";
+  const size_t at = ("\n" + text).find(key);
+  return at == std::string::npos ? -1 : std::stod(text.substr(at + key.size() - 1));
+}
+
+TEST_F(LearnerTest, PrometheusFamiliesCountRefusalsByReasonAndEachTrainedUnrollsLag) {
+  config_.budget_steps = 2 * 256;
+  auto learner = Learner::Create(scenario_.get(), config_);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  Learner* l = learner->get();
+  // Every reason's series exists from the start, at zero.
+  for (const char* reason : {"stale", "ahead", "over_cap", "duplicate", "invalid"}) {
+    EXPECT_EQ(Sample(l->metrics().Text(), absl::StrCat("imca_learner_unrolls_dropped_total{reason=\"", reason, "\"}")),
+              0)
+        << reason;
+  }
+  v1::Unroll bad = Unroll(0, 9);
+  bad.set_num_agents(7);
+  EXPECT_TRUE(absl::IsInvalidArgument(l->Push(bad)));
+  EXPECT_EQ(l->Push(Unroll(5, 10)).code(), absl::StatusCode::kAborted);  // Ahead of version 0.
+  std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
+  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
+  while (l->Status().policy_version() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  // Queued at version 1, acted with 0: trained with a lag of 1.
+  ASSERT_TRUE(l->Push(Unroll(0, 2)).ok());
+  trainer.join();
+  const std::string text = l->metrics().Text();
+  EXPECT_EQ(Sample(text, R"(imca_learner_unrolls_dropped_total{reason="invalid"})"), 1) << text;
+  EXPECT_EQ(Sample(text, R"(imca_learner_unrolls_dropped_total{reason="ahead"})"), 1);
+  EXPECT_EQ(Sample(text, R"(imca_learner_unrolls_dropped_total{reason="stale"})"), 0);
+  EXPECT_EQ(Sample(text, "imca_learner_unrolls_received_total"), 2);
+  EXPECT_EQ(Sample(text, R"(imca_learner_policy_lag_versions_bucket{le="0"})"), 1);
+  EXPECT_EQ(Sample(text, R"(imca_learner_policy_lag_versions_bucket{le="1"})"), 2);
+  EXPECT_EQ(Sample(text, R"(imca_learner_policy_lag_versions_bucket{le="+Inf"})"), 2);
+  EXPECT_EQ(Sample(text, "imca_learner_policy_lag_versions_sum"), 1);
+  EXPECT_EQ(Sample(text, "imca_learner_policy_lag_versions_count"), 2);
+  // The metrics.csv columns' families hold the last row's values.
+  EXPECT_EQ(Sample(text, "imca_learner_iterations_total"), 2);
+  EXPECT_EQ(Sample(text, "imca_learner_env_steps_total"), 512);
+  EXPECT_EQ(Sample(text, "imca_learner_policy_version"), 2);
+  EXPECT_EQ(Sample(text, "imca_learner_budget_done"), 1);
+  EXPECT_EQ(Sample(text, "imca_learner_queue_depth"), 0);
+  EXPECT_EQ(Sample(text, "imca_learner_actor_ids"), 1);
+  std::ifstream metrics(run_dir_ + "/metrics.csv");
+  std::string header;
+  ASSERT_TRUE(std::getline(metrics, header));
+  EXPECT_EQ(header, CsvHeader(scenario_->num_agents()));
 }
 
 TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {

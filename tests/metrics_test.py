@@ -353,5 +353,46 @@ class PrometheusScrapeTest(unittest.TestCase):
         self.assertGreater(value(learner, "imca_learner_policy_lag_versions_count"), 0)
 
 
+class OneDefinitionTest(unittest.TestCase):
+    """Each metric name is spelled in exactly one C++ place, and the tools
+    copy no list the binaries can tell them (`--list`)."""
+
+    def test_each_exported_family_is_defined_once_in_cpp(self):
+        names = set()
+        for program in launch.PROGRAMS:
+            for column in launch.facts()["metrics_columns"] if program == "learner" else []:
+                if column["prometheus"]:
+                    names.add(column["prometheus"])
+        sources = []
+        for folder in ("common", "learner", "reward_server", "actor", "nn", "envtool"):
+            for dirpath, _, files in os.walk(os.path.join(ROOT, folder)):
+                sources += [os.path.join(dirpath, f) for f in files
+                            if f.endswith((".cc", ".h")) and not f.endswith("_test.cc")]
+        text = {path: read(path) for path in sources}
+        # Every family name a library or binary spells ("imca_..." or "process_...").
+        for body in text.values():
+            names.update(re.findall(r'"((?:imca|process)_[a-z0-9_]+)"', body))
+        self.assertGreater(len(names), 50)
+        for name in sorted(names):
+            places = [f"{os.path.relpath(p, ROOT)}" for p, body in text.items() for _ in
+                      re.finditer(re.escape(f'"{name}"'), body)]
+            self.assertEqual(len(places), 1, f"{name} is spelled in {places}")
+
+    def test_the_tools_copy_no_scenario_reward_credit_or_permutation_list(self):
+        known = launch.facts()
+        # A line naming every credit mode (or permutation, reward kind, or
+        # most scenarios) is a copy of the list; a grid choosing some is not.
+        lists = {"scenario": (known["scenarios"], 4), "reward": (list(known["rewards"]), len(known["rewards"])),
+                 "credit": (known["credits"], len(known["credits"])),
+                 "permutation": (known["permutations"], len(known["permutations"]))}
+        for name in sorted(os.listdir(os.path.join(ROOT, "tools"))):
+            if not name.endswith(".py"):
+                continue
+            for n, line in enumerate(read(os.path.join(ROOT, "tools", name)).splitlines(), 1):
+                for what, (values, copied) in lists.items():
+                    quoted = [v for v in values if re.search(rf'["\']{re.escape(v)}["\']', line)]
+                    self.assertLess(len(quoted), copied, f"tools/{name}:{n} copies the {what} list: {line.strip()}")
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

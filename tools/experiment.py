@@ -37,7 +37,11 @@ AXES = {"scenario": "--scenario", "reward": "--reward", "credit": "--credit", "p
 # ./imca train flags that a grid's "flags" may not set: the axes, and what
 # the runner itself controls.
 RESERVED_FLAGS = set(AXES) | {"out", "resume", "quiet", "reward-port", "learner-port"}
-BASELINES = ["none", "independent", "shared"]
+
+
+def baselines():
+    """The paper's baseline credit modes: every mode but imca."""
+    return [c for c in launch.facts()["credits"] if c != "imca"]
 
 
 def pairing(scenario, reward, steps, seeds, maddpg=False):
@@ -45,7 +49,7 @@ def pairing(scenario, reward, steps, seeds, maddpg=False):
     (and with `maddpg` the paper's other learner, MADDPG, without and with the
     IMCA bonus). SF's joint input is not permuted (SPEC 5: permutations apply
     to count and RND), so its imca runs only with permutation off."""
-    entries = [{"scenario": scenario, "reward": reward, "credit": BASELINES, "permutation": "off",
+    entries = [{"scenario": scenario, "reward": reward, "credit": baselines(), "permutation": "off",
                 "seed": seeds, "steps": steps},
                {"scenario": scenario, "reward": reward, "credit": "imca",
                 "permutation": "off" if reward == "sf" else launch.facts()["permutations"], "seed": seeds, "steps": steps}]
