@@ -184,41 +184,50 @@ void Learner::RegisterMetrics() {
   }
   policy_lag_ = &registry_.AddHistogram(kPolicyLag);
   // Read under mu_ at each scrape.
-  auto read = [this](auto field) {
-    return [this, field]() -> double {
-      absl::MutexLock lock(&mu_);
-      return field(*this);
-    };
-  };
-  registry_.AddCallback(kUnrollsReceived, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.unrolls_received_);
-                       }));
-  registry_.AddCallback(kBatchesDropped, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.batches_dropped_);
-                       }));
-  registry_.AddCallback(kMinibatchesSkipped, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.minibatches_skipped_);
-                       }));
-  registry_.AddCallback(kQueueDepth, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.queue_.size());
-                       }));
-  registry_.AddCallback(kQueuedSteps, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.queued_steps_);
-                       }));
-  registry_.AddCallback(kPushersWaiting, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.pushers_waiting_);
-                       }));
-  registry_.AddCallback(kActorIds, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.actors_.size());
-                       }));
-  registry_.AddCallback(kIncarnations, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return static_cast<double>(l.actor_incarnations_);
-                       }));
-  registry_.AddCallback(kBudgetDone, read([](const Learner& l) ABSL_NO_THREAD_SAFETY_ANALYSIS {
-                         return l.done_ ? 1.0 : 0.0;
-                       }));
-  registry_.AddCallback(kStalled, [this] { return Status().seconds_stalled(); });
-  registry_.AddCallback(kTraining, [this] { return Status().seconds_training(); });
+  registry_.AddCallback(kUnrollsReceived, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(unrolls_received_);
+  });
+  registry_.AddCallback(kBatchesDropped, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(batches_dropped_);
+  });
+  registry_.AddCallback(kMinibatchesSkipped, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(minibatches_skipped_);
+  });
+  registry_.AddCallback(kQueueDepth, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(queue_.size());
+  });
+  registry_.AddCallback(kQueuedSteps, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(queued_steps_);
+  });
+  registry_.AddCallback(kPushersWaiting, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(pushers_waiting_);
+  });
+  registry_.AddCallback(kActorIds, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(actors_.size());
+  });
+  registry_.AddCallback(kIncarnations, [this] {
+    absl::MutexLock lock(&mu_);
+    return static_cast<double>(actor_incarnations_);
+  });
+  registry_.AddCallback(kBudgetDone, [this] {
+    absl::MutexLock lock(&mu_);
+    return done_ ? 1.0 : 0.0;
+  });
+  registry_.AddCallback(kStalled, [this] {
+    absl::MutexLock lock(&mu_);
+    return SecondsStalled(std::chrono::steady_clock::now());
+  });
+  registry_.AddCallback(kTraining, [this] {
+    absl::MutexLock lock(&mu_);
+    return SecondsTraining(std::chrono::steady_clock::now());
+  });
 }
 
 int64_t Learner::IterationBytes(int64_t steps) const { return algorithm_->IterationBytes(steps); }
@@ -430,16 +439,22 @@ v1::LearnerStatus Learner::Status() const {
   // to its decrement, so only blocked pushers are ever seen.
   status.set_pushers_waiting(static_cast<int32_t>(pushers_waiting_));
   const auto now = std::chrono::steady_clock::now();
-  status.set_seconds_stalled(queue_.empty() || training_since_.has_value()
-                                 ? 0.0
-                                 : std::chrono::duration<double>(now - last_progress_).count());
-  status.set_seconds_training(
-      training_since_.has_value() ? std::chrono::duration<double>(now - *training_since_).count() : 0.0);
+  status.set_seconds_stalled(SecondsStalled(now));
+  status.set_seconds_training(SecondsTraining(now));
   status.set_unrolls_duplicate(unrolls_duplicate_);
   status.set_actor_incarnations(actor_incarnations_);
   status.set_minibatches_skipped(minibatches_skipped_);
   for (const std::string& actor : actors_) status.add_actors_seen(actor);
   return status;
+}
+
+double Learner::SecondsStalled(std::chrono::steady_clock::time_point now) const {
+  return queue_.empty() || training_since_.has_value() ? 0.0
+                                                       : std::chrono::duration<double>(now - last_progress_).count();
+}
+
+double Learner::SecondsTraining(std::chrono::steady_clock::time_point now) const {
+  return training_since_.has_value() ? std::chrono::duration<double>(now - *training_since_).count() : 0.0;
 }
 
 void Learner::Stop() {

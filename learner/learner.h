@@ -123,6 +123,9 @@ class Learner {
   // stale ones); nullopt once stopping.
   std::optional<QueuedUnroll> NextUnroll();
   absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // LearnerStatus's seconds_stalled and seconds_training at `now`.
+  double SecondsStalled(std::chrono::steady_clock::time_point now) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  double SecondsTraining(std::chrono::steady_clock::time_point now) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Trains the algorithm on the iteration made of `unrolls` (already
   // added), publishes and writes metrics.
   absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);

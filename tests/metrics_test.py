@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.join(ROOT, "tools"))
 import launch  # noqa: E402
 
 ACTORS = 2
-STEPS = 700_000
+STEPS = 1_000_000
 # Label names a series may carry: small fixed sets only (no agent, actor id
 # or episode: docs/metrics.md).
 ALLOWED_LABELS = {"service", "method", "code", "reason", "le"}
@@ -224,9 +224,12 @@ class PrometheusScrapeTest(unittest.TestCase):
                 for port in ports:
                     cls.texts[(job, port)], cls.content_types[(job, port)] = http_get(
                         f"http://127.0.0.1:{port}/metrics")
-            cls.up = cls.query("up")
-            cls.rate = cls.query("imca:learner_env_steps:rate1m")
-            cls.raw_rate = cls.query("rate(imca_learner_env_steps_total[2s])")
+            targets = 2 + ACTORS
+            cls.up = cls.query_until("up", lambda r: len(r) == targets and all(x["value"][1] == "1" for x in r))
+            cls.raw_rate = cls.query_until("rate(imca_learner_env_steps_total[2s])",
+                                           lambda r: r and float(r[0]["value"][1]) > 0)
+            # The rule group evaluates once a second, from some offset.
+            cls.rate = cls.query_until("imca:learner_env_steps:rate1m", lambda r: r and float(r[0]["value"][1]) > 0)
         finally:
             cls.train_code = cls.train.wait(timeout=600)
         cls.samples = cls.query("imca_learner_env_steps_total[10m]")
@@ -247,6 +250,16 @@ class PrometheusScrapeTest(unittest.TestCase):
         answer = json.loads(body)
         assert answer["status"] == "success", answer
         return answer["data"]["result"]
+
+    @classmethod
+    def query_until(cls, expr, done, timeout=15):
+        """The query's result once `done(result)` holds (or the last one after `timeout` s)."""
+        deadline = time.time() + timeout
+        while True:
+            result = cls.query(expr)
+            if done(result) or time.time() > deadline:
+                return result
+            time.sleep(0.25)
 
     def test_the_run_trains_to_its_budget(self):
         self.assertEqual(self.train_code, 0, read(self.train_log.name))
