@@ -68,7 +68,7 @@ void Actor::RegisterMetrics() {
   c.unrolls_resent = &registry_.AddCounter({"imca_actor_unrolls_resent_total", Type::kCounter,
                                             "Unrolls sent again after a lost stream."});
   c.reconnects = &registry_.AddCounter({"imca_actor_reconnects_total", Type::kCounter,
-                                        "Unroll streams opened again after one broke."});
+                                        "Unroll streams opened again after one that had been acknowledged broke."});
   c.retries = &registry_.AddCounter({"imca_actor_retries_total", Type::kCounter,
                                      "Failed Score or push attempts retried with backoff."});
   c.policy_updates = &registry_.AddCounter({"imca_actor_policy_updates_total", Type::kCounter,
@@ -76,13 +76,8 @@ void Actor::RegisterMetrics() {
   c.policy_version = &registry_.AddGauge({"imca_actor_policy_version", Type::kGauge,
                                           "Version of the policy the actor acts with (-1: none yet)."});
   c.policy_version->Set(-1);
-  const metrics::Family refused{"imca_actor_unrolls_refused_total", Type::kCounter,
-                                "Unrolls the learner refused or dropped, by reason."};
-  c.refused.assign(v1::Rejection_ARRAYSIZE, nullptr);
-  for (int r = v1::Rejection_MIN; r <= v1::Rejection_MAX; ++r) {
-    if (!v1::Rejection_IsValid(r) || r == v1::REJECTION_NONE) continue;
-    c.refused[r] = &registry_.AddCounter(refused, {{"reason", RejectionReason(static_cast<v1::Rejection>(r))}});
-  }
+  c.refused = AddRejectionCounters(&registry_, {"imca_actor_unrolls_refused_total", Type::kCounter,
+                                                "Unrolls the learner refused or dropped, by reason."});
 }
 
 bool Actor::RefreshPolicy(bool wait) {
@@ -265,6 +260,7 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     // bounds how long a hung learner can hold this actor.
     stream_context_->set_deadline(DeadlineIn(std::chrono::minutes(10)));
     stream_ = learner_->PushUnrolls(stream_context_.get());
+    stream_unrolls_ = 0;
     if (stream_broken_) counters_.reconnects->Increment();
     stream_broken_ = false;
   }
@@ -285,7 +281,9 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     waiting_context_ = nullptr;
   }
   if (!acked) {
-    stream_broken_ = true;
+    // A reconnect is a new stream after one that was up (had an ack), not
+    // each retry while the learner is not there yet.
+    stream_broken_ = stream_unrolls_ > 0;
     const grpc::Status status = stream_->Finish();
     stream_.reset();
     stream_context_.reset();

@@ -161,7 +161,8 @@ class Actor {
   int64_t unrolls_resent_ = 0;
   int64_t transitions_scored_ = 0;
   std::chrono::steady_clock::time_point status_written_{};
-  bool stream_broken_ = false;  // The last stream ended without an ack: the next one is a reconnect.
+  // A stream that was up (had an ack) broke: the next one is a reconnect.
+  bool stream_broken_ = false;
 
   metrics::Registry registry_;
   struct Counters {

@@ -15,7 +15,6 @@
 #include "common/grpc_util.h"
 #include "common/json.h"
 #include "common/metrics_flags.h"
-#include "common/rpc_metrics.h"
 #include "common/scenario_flags.h"
 #include "common/transport.h"
 #include "common/transport_flags.h"
@@ -105,13 +104,11 @@ int main(int argc, char** argv) {
   absl::StatusOr<TransportConfig> transport = ClientTransportFromFlags();
   if (!transport.ok()) return fail(std::string(transport.status().message()));
   config.tls = transport->client_tls();
-  metrics::Registry process;
-  metrics::AddProcessMetrics(&process);
-  RpcMetrics rpc_metrics(RpcMetrics::Side::kClient,
-                         {v1::LearnerService::service_full_name(), v1::RewardService::service_full_name()}, &process);
-  auto learner = MakeChannel(absl::GetFlag(FLAGS_learner), *transport, &rpc_metrics);
+  ProcessMetrics process_metrics(RpcMetrics::Side::kClient,
+                                 {v1::LearnerService::service_full_name(), v1::RewardService::service_full_name()});
+  auto learner = MakeChannel(absl::GetFlag(FLAGS_learner), *transport, &process_metrics.rpc);
   if (!learner.ok()) return fail(std::string(learner.status().message()));
-  auto reward_server = MakeChannel(absl::GetFlag(FLAGS_reward_server), *transport, &rpc_metrics);
+  auto reward_server = MakeChannel(absl::GetFlag(FLAGS_reward_server), *transport, &process_metrics.rpc);
   if (!reward_server.ok()) return fail(std::string(reward_server.status().message()));
 
   InstallShutdownSignalHandlers();
@@ -119,7 +116,7 @@ int main(int argc, char** argv) {
                absl::GetFlag(FLAGS_learner).c_str(), absl::GetFlag(FLAGS_reward_server).c_str(),
                TransportSummary(*transport, /*server=*/false).c_str());
   actor::Actor actor(scenario->get(), config, *std::move(learner), *std::move(reward_server));
-  auto metrics_server = StartMetricsFromFlags(id.c_str(), {&process, &actor.metrics()});
+  auto metrics_server = process_metrics.Serve(id.c_str(), {&actor.metrics()});
   if (!metrics_server.ok()) return fail(std::string(metrics_server.status().message()));
   const absl::Status status = actor.Run();
   if (IsRefusal(status)) {

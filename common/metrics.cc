@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
@@ -241,6 +242,11 @@ void Registry::AddCallback(const Family& family, std::function<double()> read, c
   series->read = std::make_shared<std::function<double()>>(std::move(read));
 }
 
+void Registry::AddCollector(std::function<void()> collect) {
+  absl::MutexLock lock(&mu_);
+  collectors_.push_back(std::make_shared<std::function<void()>>(std::move(collect)));
+}
+
 void Registry::AppendText(std::string* out) const {
   // What to render, copied under the lock; the callbacks run outside it.
   struct Row {
@@ -248,14 +254,17 @@ void Registry::AppendText(std::string* out) const {
     std::shared_ptr<std::function<double()>> read;
   };
   std::vector<std::pair<const FamilyEntry*, std::vector<Row>>> snapshot;
+  std::vector<std::shared_ptr<std::function<void()>>> collectors;
   {
     absl::MutexLock lock(&mu_);
+    collectors = collectors_;
     for (const auto& entry : families_) {
       std::vector<Row> rows;
       for (const auto& series : entry->series) rows.push_back(Row{series.get(), series->read});
       snapshot.emplace_back(entry.get(), std::move(rows));
     }
   }
+  for (const auto& collect : collectors) (*collect)();
   for (const auto& [entry, rows] : snapshot) {
     const Family& f = entry->family;
     absl::StrAppend(out, "# HELP ", f.name, " ", EscapeHelp(f.help), "\n# TYPE ", f.name, " ", TypeName(f.type),
@@ -293,15 +302,22 @@ std::vector<std::string> Registry::FamilyNames() const {
   return names;
 }
 
-std::string Text(const std::vector<const Registry*>& registries) {
+std::string SharedFamily(const std::vector<const Registry*>& registries) {
   std::set<std::string> names;
-  std::string out;
   for (const Registry* registry : registries) {
     for (const std::string& name : registry->FamilyNames()) {
-      if (!names.insert(name).second) Misuse(absl::StrCat(name, ": exported by two registries"));
+      if (!names.insert(name).second) return name;
     }
-    registry->AppendText(&out);
   }
+  return "";
+}
+
+std::string Text(const std::vector<const Registry*>& registries) {
+  if (const std::string shared = SharedFamily(registries); !shared.empty()) {
+    Misuse(absl::StrCat(shared, ": exported by two registries"));
+  }
+  std::string out;
+  for (const Registry* registry : registries) registry->AppendText(&out);
   return out;
 }
 
@@ -331,9 +347,32 @@ double CountEntries(const char* dir) {
 
 }  // namespace
 
+// The process's start in Unix seconds: /proc/self/stat's starttime (clock
+// ticks since boot, field 22) plus /proc/stat's btime; now if unreadable.
+double StartTime() {
+  std::string stat;
+  std::getline(std::ifstream("/proc/self/stat"), stat);
+  // Fields after the command name, which is in parentheses and may hold spaces.
+  const size_t close = stat.rfind(')');
+  std::istringstream fields(close == std::string::npos ? "" : stat.substr(close + 2));
+  std::string field;
+  double ticks = -1;
+  for (int i = 3; i <= 22 && fields >> field; ++i) {
+    if (i == 22) ticks = std::strtod(field.c_str(), nullptr);
+  }
+  double boot = -1;
+  std::ifstream proc_stat("/proc/stat");
+  for (std::string line; std::getline(proc_stat, line);) {
+    if (absl::StartsWith(line, "btime ")) boot = std::strtod(line.c_str() + 6, nullptr);
+  }
+  if (ticks < 0 || boot < 0) {
+    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  }
+  return boot + ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
 void AddProcessMetrics(Registry* registry) {
-  const double start =
-      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const double start = StartTime();
   registry->AddCallback({"process_resident_memory_bytes", Type::kGauge, "Resident memory size in bytes."},
                         [] { return MemoryBytes().second; });
   registry->AddCallback({"process_virtual_memory_bytes", Type::kGauge, "Virtual memory size in bytes."},

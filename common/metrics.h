@@ -109,6 +109,10 @@ class Registry {
   // (for values the component already keeps, such as its status). A
   // counter's must be monotone. Adding the same series again replaces `read`.
   void AddCallback(const Family& family, std::function<double()> read, const Labels& labels = {});
+  // `collect` runs at each scrape before any value is read (outside the
+  // registry's lock), so that callbacks can read one snapshot it takes of
+  // several values instead of each taking its own.
+  void AddCollector(std::function<void()> collect);
 
   // Appends the text exposition of every family, in registration order.
   void AppendText(std::string* out) const;
@@ -133,11 +137,15 @@ class Registry {
 
   mutable absl::Mutex mu_;
   std::vector<std::unique_ptr<FamilyEntry>> families_ ABSL_GUARDED_BY(mu_);
+  std::vector<std::shared_ptr<std::function<void()>>> collectors_ ABSL_GUARDED_BY(mu_);
 };
 
 // Renders several registries into one exposition. Aborts if a family name
-// is in two of them (each name has one owner).
+// is in two of them (each name has one owner; MetricsServer::Start checks
+// it before serving).
 std::string Text(const std::vector<const Registry*>& registries);
+// The first family name that two of `registries` hold ("" if none).
+std::string SharedFamily(const std::vector<const Registry*>& registries);
 
 // The standard process_* families of Prometheus clients, read at each
 // scrape from /proc: resident and virtual memory, CPU seconds, open file

@@ -24,4 +24,15 @@ absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> StartMetricsFromFlags(
   return server;
 }
 
+ProcessMetrics::ProcessMetrics(RpcMetrics::Side side, const std::vector<std::string>& services)
+    : rpc(side, services, &registry) {
+  metrics::AddProcessMetrics(&registry);
+}
+
+absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> ProcessMetrics::Serve(
+    const char* program, std::vector<const metrics::Registry*> components) {
+  components.insert(components.begin(), &registry);
+  return StartMetricsFromFlags(program, std::move(components));
+}
+
 }  // namespace imca

@@ -2,13 +2,29 @@
 #define IMCA_COMMON_METRICS_FLAGS_H_
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "common/metrics.h"
 #include "common/metrics_server.h"
+#include "common/rpc_metrics.h"
 
 namespace imca {
+
+// What every binary exports besides its components' own families: the
+// process_* families and its gRPC calls (wire `rpc` into ServerOptions or
+// MakeChannel). Must outlive the servers, channels and endpoint using it.
+struct ProcessMetrics {
+  // `services`: the gRPC services whose calls are labelled by method.
+  ProcessMetrics(RpcMetrics::Side side, const std::vector<std::string>& services);
+  // StartMetricsFromFlags for this registry and `components`.
+  absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> Serve(const char* program,
+                                                                std::vector<const metrics::Registry*> components);
+
+  metrics::Registry registry;
+  RpcMetrics rpc;
+};
 
 // Starts the Prometheus endpoint --metrics_listen asks for, serving
 // `registries`, and logs its address as "<program>: metrics on http://...".

@@ -29,6 +29,9 @@ absl::StatusOr<std::unique_ptr<MetricsServer>> MetricsServer::Start(const std::s
     return absl::InvalidArgumentError(
         absl::StrCat("--metrics_listen: '", listen, "' is not PORT or HOST:PORT with a port in [0, 65535]"));
   }
+  if (const std::string shared = SharedFamily(registries); !shared.empty()) {
+    return absl::InternalError(absl::StrCat("metrics family ", shared, " is exported by two components"));
+  }
   std::unique_ptr<MetricsServer> server(new MetricsServer());
   server->impl_ = std::make_unique<Impl>();
   server->impl_->registries = std::move(registries);
@@ -38,7 +41,10 @@ absl::StatusOr<std::unique_ptr<MetricsServer>> MetricsServer::Start(const std::s
   http.set_read_timeout(5);
   http.set_write_timeout(5);
   http.set_payload_max_length(64 << 10);
+  // An idle keep-alive connection holds a worker (and stop() waits for it):
+  // 1 s is plenty between a scraper's requests of one scrape.
   http.set_keep_alive_max_count(100);
+  http.set_keep_alive_timeout(1);
   // SO_REUSEADDR only: httplib's default adds SO_REUSEPORT, with which a
   // second process could bind the same port and take half the scrapes.
   http.set_socket_options([](socket_t sock) {

@@ -5,7 +5,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <map>
 #include <string>
 #include <thread>
 #include <vector>
@@ -118,7 +120,10 @@ TEST(RegistryDeathTest, MisnamedOrInconsistentFamiliesAreProgrammingErrors) {
   EXPECT_DEATH(r.AddCounter({"test_requests_total", Type::kCounter, "other help"}), "different definitions");
   Registry other;
   other.AddCounter(kRequests);
+  EXPECT_EQ(SharedFamily({&r, &other}), "test_requests_total");
   EXPECT_DEATH(Text({&r, &other}), "exported by two registries");
+  absl::StatusOr<std::unique_ptr<MetricsServer>> server = MetricsServer::Start("0", {&r, &other});
+  EXPECT_TRUE(absl::IsInternal(server.status())) << server.status();
 }
 
 TEST(ProcessMetricsTest, ReadsMemoryCpuAndDescriptors) {
@@ -135,7 +140,10 @@ TEST(ProcessMetricsTest, ReadsMemoryCpuAndDescriptors) {
   EXPECT_GT(values["process_open_fds"], 2);
   EXPECT_GE(values["process_threads"], 1);
   EXPECT_GE(values["process_cpu_seconds_total"], 0);
-  EXPECT_GT(values["process_start_time_seconds"], 1.7e9);
+  // This test process's start: before now, and not long before.
+  const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  EXPECT_LE(values["process_start_time_seconds"], now + 1);
+  EXPECT_GT(values["process_start_time_seconds"], now - 3600);
 }
 
 // A plain HTTP/1.0 GET over a socket, so the server is tested against a

@@ -36,35 +36,22 @@ std::string CodeName(grpc::StatusCode code) {
   return absl::AsciiStrToUpper(absl::StatusCodeToString(static_cast<absl::StatusCode>(code)));
 }
 
-class ServerInterceptor : public grpc::experimental::Interceptor {
+// Counts a call when created and when its status passes `kHook` (the
+// server sending it, the client receiving it).
+template <grpc::experimental::InterceptionHookPoints kHook>
+class CallInterceptor : public grpc::experimental::Interceptor {
  public:
-  ServerInterceptor(RpcMetrics* metrics, int method) : metrics_(metrics), method_(method) {
-    metrics_->Started(method_);
-  }
+  CallInterceptor(RpcMetrics* metrics, int method) : metrics_(metrics), method_(method) { metrics_->Started(method_); }
   void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
-    if (methods->QueryInterceptionHookPoint(grpc::experimental::InterceptionHookPoints::PRE_SEND_STATUS)) {
-      metrics_->Handled(method_, methods->GetSendStatus().error_code(),
-                        std::chrono::duration<double>(Clock::now() - start_).count());
-    }
-    methods->Proceed();
-  }
-
- private:
-  RpcMetrics* const metrics_;
-  const int method_;
-  const Clock::time_point start_ = Clock::now();
-};
-
-class ClientInterceptor : public grpc::experimental::Interceptor {
- public:
-  ClientInterceptor(RpcMetrics* metrics, int method) : metrics_(metrics), method_(method) {
-    metrics_->Started(method_);
-  }
-  void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
-    if (methods->QueryInterceptionHookPoint(grpc::experimental::InterceptionHookPoints::POST_RECV_STATUS)) {
-      const grpc::Status* status = methods->GetRecvStatus();
-      metrics_->Handled(method_, status != nullptr ? status->error_code() : grpc::StatusCode::UNKNOWN,
-                        std::chrono::duration<double>(Clock::now() - start_).count());
+    if (methods->QueryInterceptionHookPoint(kHook)) {
+      grpc::StatusCode code;
+      if constexpr (kHook == grpc::experimental::InterceptionHookPoints::PRE_SEND_STATUS) {
+        code = methods->GetSendStatus().error_code();
+      } else {
+        const grpc::Status* status = methods->GetRecvStatus();
+        code = status != nullptr ? status->error_code() : grpc::StatusCode::UNKNOWN;
+      }
+      metrics_->Handled(method_, code, std::chrono::duration<double>(Clock::now() - start_).count());
     }
     methods->Proceed();
   }
@@ -79,7 +66,8 @@ class ServerFactory : public grpc::experimental::ServerInterceptorFactoryInterfa
  public:
   explicit ServerFactory(RpcMetrics* metrics) : metrics_(metrics) {}
   grpc::experimental::Interceptor* CreateServerInterceptor(grpc::experimental::ServerRpcInfo* info) override {
-    return new ServerInterceptor(metrics_, metrics_->MethodIndex(info->method()));
+    return new CallInterceptor<grpc::experimental::InterceptionHookPoints::PRE_SEND_STATUS>(
+        metrics_, metrics_->MethodIndex(info->method()));
   }
 
  private:
@@ -90,7 +78,8 @@ class ClientFactory : public grpc::experimental::ClientInterceptorFactoryInterfa
  public:
   explicit ClientFactory(RpcMetrics* metrics) : metrics_(metrics) {}
   grpc::experimental::Interceptor* CreateClientInterceptor(grpc::experimental::ClientRpcInfo* info) override {
-    return new ClientInterceptor(metrics_, metrics_->MethodIndex(info->method()));
+    return new CallInterceptor<grpc::experimental::InterceptionHookPoints::POST_RECV_STATUS>(
+        metrics_, metrics_->MethodIndex(info->method()));
   }
 
  private:
@@ -134,8 +123,9 @@ void RpcMetrics::Started(int method) { methods_[method]->started->Increment(); }
 
 void RpcMetrics::Handled(int method, grpc::StatusCode code, double seconds) {
   Method& m = *methods_[method];
+  m.seconds->Observe(seconds);
   const int c = static_cast<int>(code);
-  if (c < 0 || c >= static_cast<int>(m.handled.size())) return;
+  if (c < 0 || c >= static_cast<int>(m.handled.size())) return;  // Not a gRPC code: timed, not labelled.
   metrics::Counter* counter = m.handled[c].load(std::memory_order_acquire);
   if (counter == nullptr) {
     // Get-or-create in the registry: racing threads get the same counter.
@@ -144,7 +134,6 @@ void RpcMetrics::Handled(int method, grpc::StatusCode code, double seconds) {
     m.handled[c].store(counter, std::memory_order_release);
   }
   counter->Increment();
-  m.seconds->Observe(seconds);
 }
 
 std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface> RpcMetrics::ServerInterceptorFactory() {

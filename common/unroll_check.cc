@@ -13,6 +13,15 @@ namespace imca {
 std::string RejectionReason(v1::Rejection rejection) {
   return absl::AsciiStrToLower(absl::StripPrefix(v1::Rejection_Name(rejection), "REJECTION_"));
 }
+
+std::vector<metrics::Counter*> AddRejectionCounters(metrics::Registry* registry, const metrics::Family& family) {
+  std::vector<metrics::Counter*> counters(v1::Rejection_ARRAYSIZE, nullptr);
+  for (int r = v1::Rejection_MIN; r <= v1::Rejection_MAX; ++r) {
+    if (!v1::Rejection_IsValid(r) || r == v1::REJECTION_NONE) continue;
+    counters[r] = &registry->AddCounter(family, {{"reason", RejectionReason(static_cast<v1::Rejection>(r))}});
+  }
+  return counters;
+}
 namespace {
 
 template <typename Field>

@@ -2,10 +2,12 @@
 #define IMCA_COMMON_UNROLL_CHECK_H_
 
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "common/env.h"
+#include "common/metrics.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 
@@ -28,6 +30,9 @@ inline constexpr float kMaxAbsReward = 1e6f;
 // The lower-case name of a rejection without its prefix ("over_cap" for
 // REJECTION_OVER_CAP): the reason label of the dropped-unroll metrics.
 std::string RejectionReason(v1::Rejection rejection);
+// One counter of `family` per rejection reason, labelled reason=<name>, all
+// registered (at 0) now; indexed by v1::Rejection (null for REJECTION_NONE).
+std::vector<metrics::Counter*> AddRejectionCounters(metrics::Registry* registry, const metrics::Family& family);
 
 // Longest unroll.actor_id accepted, bytes.
 inline constexpr size_t kMaxActorIdBytes = 256;

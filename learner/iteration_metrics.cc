@@ -79,28 +79,48 @@ std::string CsvHeader(int num_agents) {
   return header;
 }
 
+namespace {
+
+// `format` (one printf conversion of a double) of `value`, at any length.
+std::string Cell(const char* format, double value) {
+  std::string cell(std::snprintf(nullptr, 0, format, value), '\0');
+  std::snprintf(cell.data(), cell.size() + 1, format, value);
+  return cell;
+}
+
+}  // namespace
+
 std::string CsvRow(const IterationRecord& record) {
   std::string row;
-  char cell[64];
   for (const Column& c : IterationColumns()) {
-    std::snprintf(cell, sizeof(cell), c.format, record.*c.value * c.scale);
-    absl::StrAppend(&row, row.empty() ? "" : ",", cell);
+    absl::StrAppend(&row, row.empty() ? "" : ",", Cell(c.format, record.*c.value * c.scale));
   }
-  for (double p : record.shares) {
-    std::snprintf(cell, sizeof(cell), "%.4f", p);
-    absl::StrAppend(&row, ",", cell);
-  }
+  for (double p : record.shares) absl::StrAppend(&row, ",", Cell("%.4f", p));
   return row;
 }
 
-IterationExporter::IterationExporter(metrics::Registry* registry) : values_(IterationColumns().size()) {
+IterationExporter::IterationExporter(metrics::Registry* registry)
+    : gauges_(IterationColumns().size()), counters_(IterationColumns().size()), cumulative_(IterationColumns().size()) {
   const std::vector<Column>& columns = IterationColumns();
   for (size_t i = 0; i < columns.size(); ++i) {
     const Column& c = columns[i];
-    if (c.exported == Export::kCsvOnly) continue;
-    const metrics::Type type = c.exported == Export::kGauge ? metrics::Type::kGauge : metrics::Type::kCounter;
-    std::atomic<double>* value = &values_[i];
-    registry->AddCallback({c.family, type, c.help}, [value] { return value->load(std::memory_order_relaxed); });
+    switch (c.exported) {
+      case Export::kCsvOnly:
+        break;
+      case Export::kGauge:
+        gauges_[i] = &registry->AddGauge({c.family, metrics::Type::kGauge, c.help});
+        break;
+      case Export::kIncrement:
+        counters_[i] = &registry->AddCounter({c.family, metrics::Type::kCounter, c.help});
+        break;
+      case Export::kCumulative: {
+        // Set, not added to: a value the learner keeps (and restores).
+        std::atomic<double>* value = &cumulative_[i];
+        registry->AddCallback({c.family, metrics::Type::kCounter, c.help},
+                              [value] { return value->load(std::memory_order_relaxed); });
+        break;
+      }
+    }
   }
 }
 
@@ -108,20 +128,9 @@ void IterationExporter::Publish(const IterationRecord& record) {
   const std::vector<Column>& columns = IterationColumns();
   for (size_t i = 0; i < columns.size(); ++i) {
     const double v = record.*columns[i].value;
-    switch (columns[i].exported) {
-      case Export::kCsvOnly:
-        break;
-      case Export::kGauge:
-      case Export::kCumulative:
-        values_[i].store(v, std::memory_order_relaxed);
-        break;
-      case Export::kIncrement: {
-        double old = values_[i].load(std::memory_order_relaxed);
-        while (v > 0 && !values_[i].compare_exchange_weak(old, old + v, std::memory_order_relaxed)) {
-        }
-        break;
-      }
-    }
+    if (gauges_[i] != nullptr) gauges_[i]->Set(v);
+    if (counters_[i] != nullptr) counters_[i]->Increment(v);
+    if (columns[i].exported == Export::kCumulative) cumulative_[i].store(v, std::memory_order_relaxed);
   }
 }
 

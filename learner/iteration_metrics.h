@@ -60,7 +60,11 @@ class IterationExporter {
   void Publish(const IterationRecord& record);
 
  private:
-  std::vector<std::atomic<double>> values_;  // One per column of the table.
+  // Per column of the table (null where it does not apply): the gauge or
+  // incremented counter, or the value a cumulative counter's callback reads.
+  std::vector<metrics::Gauge*> gauges_;
+  std::vector<metrics::Counter*> counters_;
+  std::vector<std::atomic<double>> cumulative_;
 };
 
 }  // namespace imca::learner

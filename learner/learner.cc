@@ -160,6 +160,19 @@ const metrics::Family kPolicyLag{"imca_learner_policy_lag_versions", metrics::Ty
 
 }  // namespace
 
+bool IsRejection(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kInvalidArgument:
+    case absl::StatusCode::kResourceExhausted:
+    case absl::StatusCode::kFailedPrecondition:
+    case absl::StatusCode::kAborted:
+    case absl::StatusCode::kAlreadyExists:
+      return true;
+    default:  // Accepted, or not refused for the unroll itself (stopping, gone).
+      return false;
+  }
+}
+
 v1::Rejection RejectionOf(const absl::Status& status) {
   switch (status.code()) {
     case absl::StatusCode::kOk: return v1::REJECTION_NONE;
@@ -177,11 +190,7 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std
 }
 
 void Learner::RegisterMetrics() {
-  dropped_.assign(v1::Rejection_ARRAYSIZE, nullptr);
-  for (int r = v1::Rejection_MIN; r <= v1::Rejection_MAX; ++r) {
-    if (!v1::Rejection_IsValid(r) || r == v1::REJECTION_NONE) continue;
-    dropped_[r] = &registry_.AddCounter(kUnrollsDropped, {{"reason", RejectionReason(static_cast<v1::Rejection>(r))}});
-  }
+  dropped_ = AddRejectionCounters(&registry_, kUnrollsDropped);
   policy_lag_ = &registry_.AddHistogram(kPolicyLag);
   // Read under mu_ at each scrape.
   registry_.AddCallback(kUnrollsReceived, [this] {
@@ -234,17 +243,7 @@ int64_t Learner::IterationBytes(int64_t steps) const { return algorithm_->Iterat
 
 absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
   absl::Status status = Enqueue(std::move(unroll), cancelled);
-  switch (status.code()) {
-    case absl::StatusCode::kInvalidArgument:
-    case absl::StatusCode::kResourceExhausted:
-    case absl::StatusCode::kFailedPrecondition:
-    case absl::StatusCode::kAborted:
-    case absl::StatusCode::kAlreadyExists:
-      dropped_[RejectionOf(status)]->Increment();
-      break;
-    default:  // Accepted, or not refused for the unroll itself (stopping, gone).
-      break;
-  }
+  if (IsRejection(status)) dropped_[RejectionOf(status)]->Increment();
   return status;
 }
 
@@ -552,6 +551,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     last_progress_ = std::chrono::steady_clock::now();
   }
   IterationStats stats;
+  bool refused = false;  // The algorithm refused the batch: nothing of it was trained.
   if (trained.ok()) {
     stats = *std::move(trained);
     if (stats.minibatches_skipped > 0) {
@@ -566,6 +566,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     // that synchronous actors move on.
     std::fprintf(stderr, "learner: iteration %lld: %s\n", static_cast<long long>(iteration_ + 1),
                  std::string(trained.status().message()).c_str());
+    refused = true;
     absl::MutexLock lock(&mu_);
     ++batches_dropped_;
   } else {
@@ -582,7 +583,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   for (const v1::Unroll& u : unrolls) {
     steps += Steps(u);
     lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
-    policy_lag_->Observe(static_cast<double>(version - u.policy_version()));
+    if (!refused) policy_lag_->Observe(static_cast<double>(version - u.policy_version()));
   }
   const CreditStats credit = MeasureCredit(unrolls, steps * scenario_->num_agents());
   {
@@ -820,6 +821,14 @@ absl::Status Learner::Restore(const std::string& checkpoint_dir) {
         std::fprintf(stderr, "learner: restored the older checkpoint %s instead (%s)\n", meta.c_str(),
                      std::string(newest_error.message()).c_str());
       }
+      // The cumulative families start from the checkpoint, not from 0 (a
+      // counter's jump from 0 would read as a burst of training).
+      const v1::LearnerStatus s = Status();
+      IterationRecord record;
+      record.iteration = static_cast<double>(iteration_);
+      record.env_steps = static_cast<double>(s.env_steps());
+      record.policy_version = static_cast<double>(s.policy_version());
+      exporter_.Publish(record);
       return absl::OkStatus();
     }
     // A damaged file (the disk, not a crash mid-write: every file is

@@ -29,6 +29,9 @@
 
 namespace imca::learner {
 
+// Whether Learner::Push's `status` refuses the unroll itself (one of its
+// refusal codes), rather than accepting it or ending the stream.
+bool IsRejection(const absl::Status& status);
 // The typed reason of one of Learner::Push's refusal codes (one per reason,
 // learner.h); REJECTION_NONE for OK.
 v1::Rejection RejectionOf(const absl::Status& status);

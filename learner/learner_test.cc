@@ -143,6 +143,9 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   ASSERT_TRUE((*resumed)->Restore(run_dir_ + "/checkpoints").ok());
   EXPECT_EQ((*resumed)->Status().policy_version(), 3);
   EXPECT_EQ((*resumed)->Status().env_steps(), 3 * 256);
+  // Its counters go on from the checkpoint's (a restart is not a burst of training).
+  EXPECT_THAT((*resumed)->metrics().Text(), HasSubstr("\nimca_learner_env_steps_total 768\n"));
+  EXPECT_THAT((*resumed)->metrics().Text(), HasSubstr("\nimca_learner_iterations_total 3\n"));
   const v1::Policy& a = *l->CurrentPolicy();
   const v1::Policy& b = *(*resumed)->CurrentPolicy();
   ASSERT_EQ(a.tensors_size(), b.tensors_size());

@@ -14,7 +14,6 @@
 #include "common/grpc_util.h"
 #include "common/json.h"
 #include "common/metrics_flags.h"
-#include "common/rpc_metrics.h"
 #include "common/scenario_flags.h"
 #include "common/transport_flags.h"
 #include "common/unroll_check.h"
@@ -270,11 +269,9 @@ int main(int argc, char** argv) {
   }
 
   learner::LearnerServiceImpl service(learner->get(), max_streams);
-  metrics::Registry process;
-  metrics::AddProcessMetrics(&process);
-  RpcMetrics rpc_metrics(RpcMetrics::Side::kServer, {v1::LearnerService::service_full_name()}, &process);
-  server_options->rpc_metrics = &rpc_metrics;
-  auto metrics_server = StartMetricsFromFlags("learner", {&process, &(*learner)->metrics(), &service.metrics()});
+  ProcessMetrics process_metrics(RpcMetrics::Side::kServer, {v1::LearnerService::service_full_name()});
+  server_options->rpc_metrics = &process_metrics.rpc;
+  auto metrics_server = process_metrics.Serve("learner", {&(*learner)->metrics(), &service.metrics()});
   if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;

@@ -14,7 +14,6 @@
 #include "common/grpc_util.h"
 #include "common/json.h"
 #include "common/metrics_flags.h"
-#include "common/rpc_metrics.h"
 #include "common/scenario_flags.h"
 #include "common/transport_flags.h"
 #include "reward_server/make_scorer.h"
@@ -64,16 +63,17 @@ int Fail(const std::string& message) {
 }
 
 // --list: one JSON object. Each reward kind is built on `scenario` to ask
-// which credit modes it serves.
+// which credit modes it serves; a kind that cannot be built is an error.
 int List(const imca::env::Scenario& scenario) {
   using namespace imca;
   std::string rewards;
   for (const std::string& kind : reward::RewardKinds()) {
+    auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{}, {});
+    if (!novelty.ok()) return Fail(absl::StrCat("--list: reward kind ", kind, ": ", novelty.status().message()));
     std::vector<std::string> credits;
     for (const std::string& name : reward::CreditNames()) {
-      reward::ScorerConfig config;
-      config.credit = *reward::ParseCredit(name);
-      if (reward::MakeScorer(kind, scenario, config, {}).ok()) credits.push_back(name);
+      const reward::Credit credit = *reward::ParseCredit(name);
+      if (credit == reward::Credit::kNone || (*novelty)->Supports(credit)) credits.push_back(name);
     }
     absl::StrAppend(&rewards, rewards.empty() ? "" : ", ", JsonString(kind), ": ", JsonStrings(credits));
   }
@@ -145,11 +145,9 @@ int main(int argc, char** argv) {
   if (limits.max_inflight < 1) return Fail("--max_inflight must be >= 1");
   if (limits.max_inflight_per_actor < 1) return Fail("--max_inflight_per_actor must be >= 1");
   reward::RewardServiceImpl service(scenario->get(), scorer.get(), kind, config, snapshot, limits);
-  metrics::Registry process;
-  metrics::AddProcessMetrics(&process);
-  RpcMetrics rpc_metrics(RpcMetrics::Side::kServer, {v1::RewardService::service_full_name()}, &process);
-  server_options->rpc_metrics = &rpc_metrics;
-  auto metrics_server = StartMetricsFromFlags("reward_server", {&process, &service.metrics()});
+  ProcessMetrics process_metrics(RpcMetrics::Side::kServer, {v1::RewardService::service_full_name()});
+  server_options->rpc_metrics = &process_metrics.rpc;
+  auto metrics_server = process_metrics.Serve("reward_server", {&service.metrics()});
   if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;

@@ -41,11 +41,12 @@ absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind
   if (!novelty.ok()) return novelty.status();
   if (config.credit != Credit::kNone && !(*novelty)->Supports(config.credit)) {
     std::vector<std::string> served;
-    for (Credit credit : {Credit::kIndependent, Credit::kShared, Credit::kImca}) {
-      if ((*novelty)->Supports(credit)) served.emplace_back(CreditName(credit));
+    for (const std::string& name : CreditNames()) {
+      const Credit credit = *ParseCredit(name);
+      if (credit == Credit::kNone || (*novelty)->Supports(credit)) served.push_back(name);
     }
     return absl::InvalidArgumentError(absl::StrCat("reward '", kind, "' does not support credit '",
-                                                   CreditName(config.credit), "' (it serves: none, ",
+                                                   CreditName(config.credit), "' (it serves: ",
                                                    absl::StrJoin(served, ", "), ")"));
   }
   return std::make_unique<CreditScorer>(*std::move(novelty), config, scenario.num_agents());

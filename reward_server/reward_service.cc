@@ -34,7 +34,7 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
       {{"imca_reward_requests_total", metrics::Type::kCounter, "Score requests answered."},
        &v1::RewardStats::requests_served},
       {{"imca_reward_requests_rejected_total", metrics::Type::kCounter,
-        "Score requests refused (invalid, over a bound, or while stopping)."},
+        "Score requests refused or failed (invalid, over a bound, while stopping, or a scorer error)."},
        &v1::RewardStats::requests_rejected},
       {{"imca_reward_requests_repeated_total", metrics::Type::kCounter,
         "Score requests repeating an already scored sequence (answered, not counted again)."},
@@ -48,14 +48,25 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
         "Optimiser steps of the learned novelty models (rnd, sf)."},
        &v1::RewardStats::model_updates},
   };
-  for (const Exported& e : kExported) {
-    registry_.AddCallback(e.family, [this, value = e.value] { return static_cast<double>((Stats().*value)()); });
+  // One Stats() per scrape (it takes the scorer's lock), read by every family.
+  static_assert(std::size(kExported) == std::tuple_size<decltype(scraped_)>::value);
+  registry_.AddCollector([this] {
+    const v1::RewardStats stats = Stats();
+    for (size_t i = 0; i < std::size(kExported); ++i) {
+      scraped_[i].store(static_cast<double>((stats.*kExported[i].value)()), std::memory_order_relaxed);
+    }
+  });
+  for (size_t i = 0; i < std::size(kExported); ++i) {
+    registry_.AddCallback(kExported[i].family, [this, i] { return scraped_[i].load(std::memory_order_relaxed); });
   }
 }
 
 grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                                       v1::ScoreResponse* response) {
-  if (!accepting_.load()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "reward server is shutting down");
+  if (!accepting_.load()) {
+    ++requests_rejected_;
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE, "reward server is shutting down");
+  }
   // The id keys the admission bound, so its size is checked first (the
   // rest of the unroll after admission).
   if (absl::Status id = ValidateActorId(request->unroll().actor_id()); !id.ok()) {
@@ -136,6 +147,7 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::Sc
       absl::MutexLock lock(&scored_mu_);
       last_scored_.erase(unroll.actor_id());  // Not scored: its retry must count.
     }
+    ++requests_rejected_;
     return ToGrpcStatus(status);
   }
   if (!dry_run) transitions_scored_ += count;

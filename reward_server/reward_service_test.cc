@@ -227,6 +227,9 @@ TEST_F(RewardServiceTest, StoppedServiceIsUnavailable) {
   service_->StopAccepting();
   v1::ScoreResponse response;
   EXPECT_EQ(Score(Valid(), &response).error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(service_->Stats().requests_rejected(), 1);  // Refused, and counted as such.
+  EXPECT_EQ(service_->Stats().requests_served(), 0);
+  EXPECT_THAT(service_->metrics().Text(), HasSubstr("\nimca_reward_requests_rejected_total 1\n"));
 }
 
 

@@ -235,9 +235,9 @@ def parse_args(argv):
     per_agent = per_agent_reward(args.reward)
     if args.credit is None:
         args.credit = "independent" if per_agent else "imca"
-    if per_agent and args.credit not in ("none", "independent"):
+    if args.credit not in known["rewards"][args.reward]:
         p.error(f"argument --credit: reward {args.reward} gives each agent its own bonus; "
-                "use --credit independent (or none)")
+                f"use --credit {' or '.join(known['rewards'][args.reward])}")
     if args.beta is None:
         args.beta = 1.0 if per_agent else 0.5
     if args.reward == "edti" and args.value_heads == 1:
