@@ -126,28 +126,36 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& ta
   return grpc::experimental::CreateCustomChannelWithInterceptors(target, *credentials, args, std::move(interceptors));
 }
 
-absl::StatusOr<bool> CheckHealth(const std::shared_ptr<grpc::Channel>& channel, std::chrono::milliseconds timeout) {
-  // Debian ships no generated health stubs: a generic call with an empty
-  // HealthCheckRequest; the answer's field 1 is the status, 1 = SERVING.
+grpc::Status GenericUnaryCall(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
+                              const std::string& request_bytes, std::chrono::milliseconds timeout,
+                              std::string* response_bytes) {
   grpc::GenericStub stub(channel);
   grpc::CompletionQueue queue;
   grpc::ClientContext context;
   context.set_deadline(DeadlineIn(timeout));
-  grpc::Slice empty("");
-  grpc::ByteBuffer request(&empty, 1), response;
-  auto call = stub.PrepareUnaryCall(&context, "/grpc.health.v1.Health/Check", request, &queue);
+  grpc::Slice slice(request_bytes);
+  grpc::ByteBuffer request(&slice, 1), response;
+  auto call = stub.PrepareUnaryCall(&context, method, request, &queue);
   call->StartCall();
   grpc::Status status;
   call->Finish(&response, &status, nullptr);
   void* tag;
   bool ok;
   queue.Next(&tag, &ok);
-  if (!status.ok()) return FromGrpcStatus(status);
+  response_bytes->clear();
   std::vector<grpc::Slice> slices;
-  std::string bytes;
-  if (response.Dump(&slices).ok()) {
-    for (const grpc::Slice& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  if (status.ok() && response.Dump(&slices).ok()) {
+    for (const grpc::Slice& s : slices) response_bytes->append(reinterpret_cast<const char*>(s.begin()), s.size());
   }
+  return status;
+}
+
+absl::StatusOr<bool> CheckHealth(const std::shared_ptr<grpc::Channel>& channel, std::chrono::milliseconds timeout) {
+  // Debian ships no generated health stubs: a generic call with an empty
+  // HealthCheckRequest; the answer's field 1 is the status, 1 = SERVING.
+  std::string bytes;
+  const grpc::Status status = GenericUnaryCall(channel, "/grpc.health.v1.Health/Check", "", timeout, &bytes);
+  if (!status.ok()) return FromGrpcStatus(status);
   return bytes == std::string("\x08\x01", 2);
 }
 

@@ -62,6 +62,14 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const std::string& ta
                                                            const TransportConfig& transport,
                                                            RpcMetrics* rpc_metrics = nullptr);
 
+// A unary call of `method` ("/pkg.Service/Method") with `request_bytes` as
+// the serialized request, by gRPC's generic stub (Debian ships no
+// synchronous generic call); fills *response_bytes on success. Blocks up to
+// `timeout`.
+grpc::Status GenericUnaryCall(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
+                              const std::string& request_bytes, std::chrono::milliseconds timeout,
+                              std::string* response_bytes);
+
 // Asks the server at the other end of `channel` whether it serves, through
 // grpc.health.v1.Health/Check for the server as a whole (no token needed).
 // True: SERVING; false: any other answer. Errors: the call's, converted.

@@ -8,7 +8,6 @@
 #include <string>
 #include <thread>
 
-#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 
 #include "absl/strings/str_cat.h"
@@ -34,24 +33,10 @@ double Sample(const std::string& text, const std::string& series) {
   return std::stod(text.substr(at + key.size() - 1));
 }
 
-// A unary call of `method` with `bytes` as the request, by the generic stub
-// (Debian ships no synchronous generic call); its status.
 grpc::Status GenericCall(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
                          const std::string& bytes) {
-  grpc::GenericStub generic(channel);
-  grpc::CompletionQueue queue;
-  grpc::ClientContext context;
-  context.set_deadline(DeadlineIn(std::chrono::seconds(10)));
-  grpc::Slice slice(bytes);
-  grpc::ByteBuffer request(&slice, 1), response;
-  auto call = generic.PrepareUnaryCall(&context, method, request, &queue);
-  call->StartCall();
-  grpc::Status status;
-  call->Finish(&response, &status, nullptr);
-  void* tag;
-  bool ok;
-  queue.Next(&tag, &ok);
-  return status;
+  std::string response;
+  return GenericUnaryCall(channel, method, bytes, std::chrono::seconds(10), &response);
 }
 
 class RpcMetricsTest : public ::testing::Test {
