@@ -8,11 +8,11 @@
 
 #include <unistd.h>
 
-#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/atomic_file.h"
 #include "common/grpc_util.h"
+#include "common/json.h"
 #include "common/transport.h"
 #include "common/unroll_check.h"
 
@@ -446,12 +446,14 @@ void Actor::WriteStatus(const char* state, bool force) {
   const auto now = std::chrono::steady_clock::now();
   if (!force && now - status_written_ < config_.status_period) return;
   status_written_ = now;
-  const absl::Status written = WriteFileAtomically(
-      config_.status_file,
-      absl::StrFormat("{\"actor_id\": \"%s\", \"incarnation\": \"%016x\", \"unrolls_pushed\": %d, "
-                      "\"unrolls_resent\": %d, \"transitions_scored\": %d, \"state\": \"%s\", \"time\": %.3f}\n",
-                      absl::CEscape(config_.actor_id), incarnation_, unrolls_pushed_, unrolls_resent_,
-                      transitions_scored_, state, UnixSeconds()));
+  JsonObject fields;
+  fields.Add("actor_id", config_.actor_id)
+      .Add("incarnation", absl::StrFormat("%016x", incarnation_))
+      .Add("unrolls_pushed", unrolls_pushed_)
+      .Add("unrolls_resent", unrolls_resent_)
+      .Add("transitions_scored", transitions_scored_)
+      .Add("state", state);
+  const absl::Status written = WriteStatusFile(config_.status_file, std::move(fields));
   if (!written.ok()) {
     std::fprintf(stderr, "%s: status: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
   }

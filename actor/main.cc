@@ -50,11 +50,14 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
   if (absl::GetFlag(FLAGS_list)) {
-    std::printf("%s", absl::StrCat("{\"program\": \"actor\",\n \"scenarios\": ", JsonStrings(env::ScenarioNames()),
-                                   ",\n \"max_unroll_transitions\": ", kMaxTransitions,
-                                   ",\n \"max_door_timer\": ", env::kMaxDoorTimer,
-                                   ",\n \"exit_refused\": ", kExitRefused, "}\n")
-                          .c_str());
+    std::printf("%s\n", JsonObject()
+                            .Add("program", "actor")
+                            .Add("scenarios", env::ScenarioNames())
+                            .Add("max_unroll_transitions", kMaxTransitions)
+                            .Add("max_door_timer", env::kMaxDoorTimer)
+                            .Add("exit_refused", kExitRefused)
+                            .Text()
+                            .c_str());
     return 0;
   }
   std::string id = absl::GetFlag(FLAGS_actor_id);

@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "common/json.h"
 
 namespace imca {
 
@@ -38,6 +39,13 @@ absl::Status SyncPath(const std::string& path);
 // binaries write for a supervisor (--status_file).
 inline double UnixSeconds() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// Writes a binary's one-line status record (--status_file, read by a
+// supervisor such as ./imca train) atomically: `fields`, then "time" (Unix
+// seconds). Errors: WriteFileAtomically's.
+inline absl::Status WriteStatusFile(const std::string& path, JsonObject fields) {
+  return WriteFileAtomically(path, fields.Add("time", UnixSeconds(), 3).Text() + "\n");
 }
 
 }  // namespace imca

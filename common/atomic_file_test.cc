@@ -66,5 +66,28 @@ TEST_F(AtomicFileTest, AnUnwritablePlaceIsAnErrorNamingIt) {
   EXPECT_FALSE(std::filesystem::exists(path_ + ".tmp"));
 }
 
+TEST(JsonObjectTest, KeepsKeyOrderAndEscapesStrings) {
+  JsonObject o;
+  o.Add("id", "a\"b\\c\n").Add("n", int64_t{-3}).Add("ok", true).Add("x", 0.5, 3).Add("names", {"p", "q"});
+  EXPECT_EQ(o.Text(), R"({"id": "a\"b\\c\u000a", "n": -3, "ok": true, "x": 0.500, "names": ["p", "q"]})");
+  EXPECT_EQ(JsonObject().Text(), "{}");
+  EXPECT_EQ(JsonObject().Raw("o", JsonObject().Add("k", 1).Text()).Text(), R"({"o": {"k": 1}})");
+}
+
+TEST(JsonObjectTest, StatusFilesEndWithTheTimeOnOneLine) {
+  const std::string path = ::testing::TempDir() + "/status_" + std::to_string(getpid()) + ".json";
+  const double before = UnixSeconds();
+  ASSERT_TRUE(WriteStatusFile(path, JsonObject().Add("state", "acting")).ok());
+  std::ifstream in(path);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  ASSERT_THAT(line, ::testing::StartsWith(R"({"state": "acting", "time": )"));
+  const double time = std::stod(line.substr(line.rfind(' ') + 1));
+  EXPECT_GE(time, before - 0.001);
+  EXPECT_LE(time, UnixSeconds() + 0.001);
+  EXPECT_FALSE(std::getline(in, line));
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace imca

@@ -1,6 +1,7 @@
 #ifndef IMCA_COMMON_JSON_H_
 #define IMCA_COMMON_JSON_H_
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,34 @@ inline std::string JsonStrings(const std::vector<std::string>& items) {
   for (size_t i = 0; i < items.size(); ++i) absl::StrAppend(&out, i > 0 ? ", " : "", JsonString(items[i]));
   return out + "]";
 }
+
+// Builds one JSON object, keys in the order added: what the binaries write
+// as status files and print for --list. Not thread-safe.
+class JsonObject {
+ public:
+  JsonObject& Add(absl::string_view key, absl::string_view value) { return Raw(key, JsonString(value)); }
+  JsonObject& Add(absl::string_view key, const char* value) { return Raw(key, JsonString(value)); }
+  JsonObject& Add(absl::string_view key, bool value) { return Raw(key, value ? "true" : "false"); }
+  JsonObject& Add(absl::string_view key, int64_t value) { return Raw(key, absl::StrCat(value)); }
+  JsonObject& Add(absl::string_view key, int value) { return Raw(key, absl::StrCat(value)); }
+  // `digits` after the point (e.g. 3 for a time in ms resolution).
+  JsonObject& Add(absl::string_view key, double value, int digits) {
+    return Raw(key, absl::StrFormat("%.*f", digits, value));
+  }
+  JsonObject& Add(absl::string_view key, const std::vector<std::string>& values) {
+    return Raw(key, JsonStrings(values));
+  }
+  // `json`: an already formatted JSON value (an object or array).
+  JsonObject& Raw(absl::string_view key, absl::string_view json) {
+    absl::StrAppend(&text_, text_.empty() ? "{" : ", ", JsonString(key), ": ", json);
+    return *this;
+  }
+  // The object (one line).
+  std::string Text() const { return text_.empty() ? "{}" : text_ + "}"; }
+
+ private:
+  std::string text_;
+};
 
 }  // namespace imca
 

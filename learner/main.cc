@@ -8,7 +8,6 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 #include "common/atomic_file.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
@@ -136,20 +135,27 @@ std::string ListJson() {
   using namespace imca;
   std::string columns;
   for (const learner::Column& c : learner::IterationColumns()) {
-    absl::StrAppend(&columns, columns.empty() ? "" : ",\n    ", "{\"name\": ", JsonString(c.name),
-                    ", \"help\": ", JsonString(c.help),
-                    ", \"prometheus\": ", c.family != nullptr ? JsonString(c.family) : "null", "}");
+    absl::StrAppend(&columns, columns.empty() ? "" : ", ",
+                    JsonObject()
+                        .Add("name", c.name)
+                        .Add("help", c.help)
+                        .Raw("prometheus", c.family != nullptr ? JsonString(c.family) : "null")
+                        .Text());
   }
-  return absl::StrCat("{\"program\": \"learner\",\n \"scenarios\": ", JsonStrings(env::ScenarioNames()),
-                      ",\n \"algos\": ", JsonStrings(learner::AlgoNames()),
-                      ",\n \"objectives\": ", JsonStrings(learner::PpoObjectiveNames()),
-                      ",\n \"critic_inputs\": ", JsonStrings(learner::CriticInputNames()),
-                      ",\n \"time_limits\": ", JsonStrings(learner::TimeLimitNames()),
-                      ",\n \"success_window\": ", kDefaults.metrics_window,
-                      ",\n \"max_actor_ids\": ", kDefaults.max_actor_ids,
-                      ",\n \"max_unroll_transitions\": ", kMaxTransitions,
-                      ",\n \"exit_refused\": ", kExitRefused,
-                      ",\n \"metrics_columns\": [\n    ", columns, "]}\n");
+  return JsonObject()
+             .Add("program", "learner")
+             .Add("scenarios", env::ScenarioNames())
+             .Add("algos", learner::AlgoNames())
+             .Add("objectives", learner::PpoObjectiveNames())
+             .Add("critic_inputs", learner::CriticInputNames())
+             .Add("time_limits", learner::TimeLimitNames())
+             .Add("success_window", kDefaults.metrics_window)
+             .Add("max_actor_ids", kDefaults.max_actor_ids)
+             .Add("max_unroll_transitions", kMaxTransitions)
+             .Add("exit_refused", kExitRefused)
+             .Raw("metrics_columns", absl::StrCat("[", columns, "]"))
+             .Text() +
+         "\n";
 }
 
 }  // namespace
@@ -291,16 +297,19 @@ int main(int argc, char** argv) {
   auto write_status = [&] {
     if (status_file.empty()) return;
     const v1::LearnerStatus s = (*learner)->Status();
-    const absl::Status written = WriteFileAtomically(
-        status_file,
-        absl::StrFormat("{\"policy_version\": %d, \"env_steps\": %d, \"unrolls_received\": %d, "
-                        "\"unrolls_duplicate\": %d, \"actor_incarnations\": %d, \"queue_depth\": %d, "
-                        "\"pushers_waiting\": %d, \"seconds_stalled\": %.3f, \"seconds_training\": %.3f, "
-                        "\"batches_dropped\": %d, "
-                        "\"done\": %s, \"time\": %.3f}\n",
-                        s.policy_version(), s.env_steps(), s.unrolls_received(), s.unrolls_duplicate(),
-                        s.actor_incarnations(), s.queue_depth(), s.pushers_waiting(), s.seconds_stalled(),
-                        s.seconds_training(), s.batches_dropped(), s.done() ? "true" : "false", UnixSeconds()));
+    JsonObject fields;
+    fields.Add("policy_version", s.policy_version())
+        .Add("env_steps", s.env_steps())
+        .Add("unrolls_received", s.unrolls_received())
+        .Add("unrolls_duplicate", s.unrolls_duplicate())
+        .Add("actor_incarnations", s.actor_incarnations())
+        .Add("queue_depth", s.queue_depth())
+        .Add("pushers_waiting", s.pushers_waiting())
+        .Add("seconds_stalled", s.seconds_stalled(), 3)
+        .Add("seconds_training", s.seconds_training(), 3)
+        .Add("batches_dropped", s.batches_dropped())
+        .Add("done", s.done());
+    const absl::Status written = WriteStatusFile(status_file, std::move(fields));
     if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
   };
   std::thread watcher([&] {

@@ -8,7 +8,6 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 #include "common/atomic_file.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
@@ -66,7 +65,7 @@ int Fail(const std::string& message) {
 // which credit modes it serves; a kind that cannot be built is an error.
 int List(const imca::env::Scenario& scenario) {
   using namespace imca;
-  std::string rewards;
+  JsonObject rewards;
   for (const std::string& kind : reward::RewardKinds()) {
     auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{}, {});
     if (!novelty.ok()) return Fail(absl::StrCat("--list: reward kind ", kind, ": ", novelty.status().message()));
@@ -75,13 +74,16 @@ int List(const imca::env::Scenario& scenario) {
       const reward::Credit credit = *reward::ParseCredit(name);
       if (credit == reward::Credit::kNone || (*novelty)->Supports(credit)) credits.push_back(name);
     }
-    absl::StrAppend(&rewards, rewards.empty() ? "" : ", ", JsonString(kind), ": ", JsonStrings(credits));
+    rewards.Add(kind, credits);
   }
-  std::printf("%s", absl::StrCat("{\"program\": \"reward_server\",\n \"scenarios\": ",
-                                 JsonStrings(env::ScenarioNames()), ",\n \"rewards\": {", rewards, "}",
-                                 ",\n \"credits\": ", JsonStrings(reward::CreditNames()),
-                                 ",\n \"permutations\": ", JsonStrings(reward::PermutationNames()), "}\n")
-                        .c_str());
+  std::printf("%s\n", JsonObject()
+                          .Add("program", "reward_server")
+                          .Add("scenarios", env::ScenarioNames())
+                          .Raw("rewards", rewards.Text())
+                          .Add("credits", reward::CreditNames())
+                          .Add("permutations", reward::PermutationNames())
+                          .Text()
+                          .c_str());
   return 0;
 }
 
@@ -165,12 +167,13 @@ int main(int argc, char** argv) {
   auto write_status = [&] {
     if (status_file.empty()) return;
     const v1::RewardStats stats = service.Stats();
-    const absl::Status written = WriteFileAtomically(
-        status_file,
-        absl::StrFormat("{\"transitions_scored\": %d, \"requests_served\": %d, \"requests_rejected\": %d, "
-                        "\"distinct_keys\": %d, \"distinct_local_keys\": %d, \"time\": %.3f}\n",
-                        stats.transitions_scored(), stats.requests_served(), stats.requests_rejected(),
-                        stats.distinct_keys(), stats.distinct_local_keys(), UnixSeconds()));
+    JsonObject fields;
+    fields.Add("transitions_scored", stats.transitions_scored())
+        .Add("requests_served", stats.requests_served())
+        .Add("requests_rejected", stats.requests_rejected())
+        .Add("distinct_keys", stats.distinct_keys())
+        .Add("distinct_local_keys", stats.distinct_local_keys());
+    const absl::Status written = WriteStatusFile(status_file, std::move(fields));
     if (!written.ok()) std::fprintf(stderr, "reward_server: status: %s\n", std::string(written.message()).c_str());
   };
   auto last_snapshot = std::chrono::steady_clock::now();
