@@ -35,7 +35,7 @@ class PresetsTest(unittest.TestCase):
     def test_maddpg_rows_parse_and_are_labelled_by_their_algorithm(self):
         import experiment
         for preset in ("paper", "edti"):
-            cells = experiment.expand(experiment.PRESETS[preset]["entries"], preset)
+            cells = experiment.expand(experiment.presets()[preset]["entries"], preset)
             experiment.check_flags(cells)  # Every cell's flags are valid ./imca train flags.
             label = experiment.labeller(cells)
             labels = {label(cell) for cell in cells}

@@ -15,6 +15,7 @@ DIR/gifs/<scenario>-<reward>-<method>.gif. See docs/experiments.md.
 """
 import argparse
 import contextlib
+import functools
 import hashlib
 import io
 import itertools
@@ -64,32 +65,36 @@ def maddpg_rows(scenario, reward, steps, seeds):
             "seed": seeds, "steps": steps, "flags": {"algo": "maddpg"}}
 
 
-PRESETS = {
-    "paper": {
-        "description": "the paper's comparison: coop_nav + count, predator_prey + RND, multi_room + SF; "
-                       "credit none/independent/shared/imca, imca with permutation off/random/canonical, "
-                       "and MADDPG with credit none/imca; 5 seeds",
-        "entries": pairing("coop_nav", "count", 2_000_000, [1, 2, 3, 4, 5], maddpg=True)
-        + pairing("predator_prey", "rnd", 2_000_000, [1, 2, 3, 4, 5], maddpg=True)
-        + pairing("multi_room", "sf", 4_000_000, [1, 2, 3, 4, 5], maddpg=True),
-    },
-    "edti": {
-        "description": "EDTI's exact tasks pass and secret_room: count novelty with credit none/shared/imca "
-                       "against EITI and EDTI (docs/baselines.md), and MADDPG with credit none/imca; 5 seeds; "
-                       "3M env steps",
-        "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
-                     "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000},
-                    maddpg_rows(["pass", "secret_room"], "count", 3_000_000, [1, 2, 3, 4, 5]),
-                    {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
-                     "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000}],
-    },
-    "quick": {
-        "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",
-        "entries": pairing("coop_nav", "count", 1_000_000, [1, 2])
-        + pairing("predator_prey", "rnd", 400_000, [1, 2])
-        + pairing("multi_room", "sf", 800_000, [1, 2]),
-    },
-}
+@functools.lru_cache(maxsize=None)
+def presets():
+    """The built-in grids, by name (built when first asked: they use the
+    binaries' lists of credit and permutation modes)."""
+    return {
+        "paper": {
+            "description": "the paper's comparison: coop_nav + count, predator_prey + RND, multi_room + SF; "
+                           "credit none/independent/shared/imca, imca with permutation off/random/canonical, "
+                           "and MADDPG with credit none/imca; 5 seeds",
+            "entries": pairing("coop_nav", "count", 2_000_000, [1, 2, 3, 4, 5], maddpg=True)
+            + pairing("predator_prey", "rnd", 2_000_000, [1, 2, 3, 4, 5], maddpg=True)
+            + pairing("multi_room", "sf", 4_000_000, [1, 2, 3, 4, 5], maddpg=True),
+        },
+        "edti": {
+            "description": "EDTI's exact tasks pass and secret_room: count novelty with credit none/shared/imca "
+                           "against EITI and EDTI (docs/baselines.md), and MADDPG with credit none/imca; 5 seeds; "
+                           "3M env steps",
+            "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
+                         "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000},
+                        maddpg_rows(["pass", "secret_room"], "count", 3_000_000, [1, 2, 3, 4, 5]),
+                        {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
+                         "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000}],
+        },
+        "quick": {
+            "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",
+            "entries": pairing("coop_nav", "count", 1_000_000, [1, 2])
+            + pairing("predator_prey", "rnd", 400_000, [1, 2])
+            + pairing("multi_room", "sf", 800_000, [1, 2]),
+        },
+    }
 
 
 # Presets write to results/<preset>-<edition>: the learner's defaults changed
@@ -339,7 +344,7 @@ def main(argv):
     p = launch.OneLineParser(prog="imca experiment", description=__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--preset", choices=sorted(PRESETS), help="a built-in grid")
+    what.add_argument("--preset", help="a built-in grid (docs/experiments.md; a wrong name lists them)")
     what.add_argument("--grid", metavar="FILE", help="a JSON grid (docs/experiments.md)")
     what.add_argument("--report", metavar="DIR", help="only (re)write the tables and plots of DIR")
     p.add_argument("--out", default="",
@@ -347,6 +352,11 @@ def main(argv):
     p.add_argument("--jobs", type=launch.positive_int, default=0,
                    help=f"runs at once (default: cores/2 = {default_jobs()})")
     args = p.parse_args(argv)
+    try:
+        if args.preset and args.preset not in presets():
+            p.error(f"argument --preset: '{args.preset}' is not one of {', '.join(sorted(presets()))}")
+    except launch.LaunchError as error:
+        p.error(str(error))
 
     import report  # noqa: E402  (matplotlib only once the flags are valid)
 
@@ -356,8 +366,8 @@ def main(argv):
             grid = load_saved_grid(out)
         else:
             if args.preset:
-                grid = {"name": args.preset, "description": PRESETS[args.preset]["description"],
-                        "entries": PRESETS[args.preset]["entries"]}
+                grid = {"name": args.preset, "description": presets()[args.preset]["description"],
+                        "entries": presets()[args.preset]["entries"]}
             else:
                 grid = load_grid(args.grid)
             default_out = f"{args.preset}-{PRESET_EDITION}" if args.preset else grid["name"]

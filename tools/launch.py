@@ -827,9 +827,8 @@ def run(args):
 
 
 def main(argv):
-    args = parse_args(argv)
     try:
-        return run(args)
+        return run(parse_args(argv))
     except LaunchError as error:
         print(f"imca train: {error}", file=sys.stderr)
         return 2
