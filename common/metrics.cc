@@ -206,30 +206,27 @@ Registry::Series* Registry::Find(const Family& family, const Labels& labels) {
   return series;
 }
 
-Counter& Registry::AddCounter(const Family& family, const Labels& labels) {
-  if (family.type != Type::kCounter) Misuse(absl::StrCat(family.name, ": not a counter"));
+template <typename T, typename... Args>
+T& Registry::AddValue(const Family& family, const Labels& labels, Type type, std::unique_ptr<T> Series::*slot,
+                      Args&&... args) {
+  if (family.type != type) Misuse(absl::StrCat(family.name, ": not a ", TypeName(type)));
   absl::MutexLock lock(&mu_);
   Series* series = Find(family, labels);
   if (series->read != nullptr) Misuse(absl::StrCat(family.name, ": series already read by a callback"));
-  if (series->counter == nullptr) series->counter = std::make_unique<Counter>();
-  return *series->counter;
+  if (series->*slot == nullptr) series->*slot = std::make_unique<T>(std::forward<Args>(args)...);
+  return *(series->*slot);
+}
+
+Counter& Registry::AddCounter(const Family& family, const Labels& labels) {
+  return AddValue(family, labels, Type::kCounter, &Series::counter);
 }
 
 Gauge& Registry::AddGauge(const Family& family, const Labels& labels) {
-  if (family.type != Type::kGauge) Misuse(absl::StrCat(family.name, ": not a gauge"));
-  absl::MutexLock lock(&mu_);
-  Series* series = Find(family, labels);
-  if (series->read != nullptr) Misuse(absl::StrCat(family.name, ": series already read by a callback"));
-  if (series->gauge == nullptr) series->gauge = std::make_unique<Gauge>();
-  return *series->gauge;
+  return AddValue(family, labels, Type::kGauge, &Series::gauge);
 }
 
 Histogram& Registry::AddHistogram(const Family& family, const Labels& labels) {
-  if (family.type != Type::kHistogram) Misuse(absl::StrCat(family.name, ": not a histogram"));
-  absl::MutexLock lock(&mu_);
-  Series* series = Find(family, labels);
-  if (series->histogram == nullptr) series->histogram = std::make_unique<Histogram>(family.buckets);
-  return *series->histogram;
+  return AddValue(family, labels, Type::kHistogram, &Series::histogram, family.buckets);
 }
 
 void Registry::AddCallback(const Family& family, std::function<double()> read, const Labels& labels) {
@@ -242,9 +239,45 @@ void Registry::AddCallback(const Family& family, std::function<double()> read, c
   series->read = std::make_shared<std::function<double()>>(std::move(read));
 }
 
-void Registry::AddCollector(std::function<void()> collect) {
+void Snapshot::Set(const Family& family, double value) {
+  if (learning_) {
+    families_.push_back(family);
+    values_.push_back(value);
+    return;
+  }
+  if (next_ >= families_.size() || std::string(families_[next_].name) != family.name) {
+    Misuse(absl::StrCat(family.name, ": a snapshot must set the same families in the same order each time"));
+  }
+  values_[next_++] = value;
+}
+
+void Registry::AddSnapshot(std::function<void(Snapshot&)> read) {
+  struct Group {
+    absl::Mutex mu;
+    Snapshot snapshot ABSL_GUARDED_BY(mu);
+    std::function<void(Snapshot&)> read;
+  };
+  auto group = std::make_shared<Group>();
+  group->read = std::move(read);
+  std::vector<Family> families;
+  {
+    absl::MutexLock lock(&group->mu);
+    group->read(group->snapshot);
+    group->snapshot.learning_ = false;
+    families = group->snapshot.families_;
+  }
+  for (size_t i = 0; i < families.size(); ++i) {
+    AddCallback(families[i], [group, i] {
+      absl::MutexLock lock(&group->mu);
+      return group->snapshot.values_[i];
+    });
+  }
   absl::MutexLock lock(&mu_);
-  collectors_.push_back(std::make_shared<std::function<void()>>(std::move(collect)));
+  collectors_.push_back(std::make_shared<std::function<void()>>([group] {
+    absl::MutexLock lock(&group->mu);
+    group->snapshot.next_ = 0;
+    group->read(group->snapshot);
+  }));
 }
 
 void Registry::AppendText(std::string* out) const {

@@ -88,6 +88,21 @@ class Histogram {
 // Bucket bounds `start`, start*factor, ... (`count` of them).
 std::vector<double> ExponentialBuckets(double start, double factor, int count);
 
+// The values one Registry::AddSnapshot read sets together (see there).
+class Snapshot {
+ public:
+  // Sets `family`'s value: counters and gauges without labels, in the same
+  // order at every call (misuse aborts).
+  void Set(const Family& family, double value);
+
+ private:
+  friend class Registry;
+  bool learning_ = true;          // The first call: Set adds families.
+  std::vector<Family> families_;  // In the order Set named them.
+  std::vector<double> values_;
+  size_t next_ = 0;
+};
+
 // A set of metric families. Registration is get-or-create: adding a series
 // (family + labels) that exists returns the existing one, so call sites may
 // add lazily (e.g. a new status code). Misuse is a programming error and
@@ -109,10 +124,11 @@ class Registry {
   // (for values the component already keeps, such as its status). A
   // counter's must be monotone. Adding the same series again replaces `read`.
   void AddCallback(const Family& family, std::function<double()> read, const Labels& labels = {});
-  // `collect` runs at each scrape before any value is read (outside the
-  // registry's lock), so that callbacks can read one snapshot it takes of
-  // several values instead of each taking its own.
-  void AddCollector(std::function<void()> collect);
+  // Series that one `read` sets together at each scrape (Snapshot::Set),
+  // taking one lock and one consistent view of the component's state
+  // instead of one per series. `read` runs once here, to learn its
+  // families, and then once per scrape before any value is rendered.
+  void AddSnapshot(std::function<void(Snapshot&)> read);
 
   // Appends the text exposition of every family, in registration order.
   void AppendText(std::string* out) const;
@@ -134,6 +150,11 @@ class Registry {
   };
   // The series of `family` with `labels`, created if missing.
   Series* Find(const Family& family, const Labels& labels) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Add{Counter,Gauge,Histogram}: the series' value object in `slot`,
+  // made from `args` if missing.
+  template <typename T, typename... Args>
+  T& AddValue(const Family& family, const Labels& labels, Type type, std::unique_ptr<T> Series::*slot,
+              Args&&... args);
 
   mutable absl::Mutex mu_;
   std::vector<std::unique_ptr<FamilyEntry>> families_ ABSL_GUARDED_BY(mu_);

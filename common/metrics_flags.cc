@@ -11,19 +11,6 @@ ABSL_FLAG(std::string, metrics_listen, "",
 
 namespace imca {
 
-absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> StartMetricsFromFlags(
-    const char* program, std::vector<const metrics::Registry*> registries) {
-  const std::string listen = absl::GetFlag(FLAGS_metrics_listen);
-  if (listen.empty()) return nullptr;
-  absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> server =
-      metrics::MetricsServer::Start(listen, std::move(registries));
-  if (server.ok()) {
-    std::fprintf(stderr, "%s: metrics on http://%s:%d/metrics\n", program, (*server)->host().c_str(),
-                 (*server)->port());
-  }
-  return server;
-}
-
 ProcessMetrics::ProcessMetrics(RpcMetrics::Side side, const std::vector<std::string>& services)
     : rpc(side, services, &registry) {
   metrics::AddProcessMetrics(&registry);
@@ -31,8 +18,16 @@ ProcessMetrics::ProcessMetrics(RpcMetrics::Side side, const std::vector<std::str
 
 absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> ProcessMetrics::Serve(
     const char* program, std::vector<const metrics::Registry*> components) {
+  const std::string listen = absl::GetFlag(FLAGS_metrics_listen);
+  if (listen.empty()) return nullptr;
   components.insert(components.begin(), &registry);
-  return StartMetricsFromFlags(program, std::move(components));
+  absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> server =
+      metrics::MetricsServer::Start(listen, std::move(components));
+  if (server.ok()) {
+    std::fprintf(stderr, "%s: metrics on http://%s:%d/metrics\n", program, (*server)->host().c_str(),
+                 (*server)->port());
+  }
+  return server;
 }
 
 }  // namespace imca

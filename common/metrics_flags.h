@@ -18,20 +18,16 @@ namespace imca {
 struct ProcessMetrics {
   // `services`: the gRPC services whose calls are labelled by method.
   ProcessMetrics(RpcMetrics::Side side, const std::vector<std::string>& services);
-  // StartMetricsFromFlags for this registry and `components`.
+  // Starts the Prometheus endpoint --metrics_listen asks for, serving this
+  // registry and `components`, and logs its address as "<program>: metrics
+  // on http://...". Returns nullptr when the flag is empty (no endpoint).
+  // Errors: those of MetricsServer::Start, naming --metrics_listen.
   absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> Serve(const char* program,
                                                                 std::vector<const metrics::Registry*> components);
 
   metrics::Registry registry;
   RpcMetrics rpc;
 };
-
-// Starts the Prometheus endpoint --metrics_listen asks for, serving
-// `registries`, and logs its address as "<program>: metrics on http://...".
-// Returns nullptr when the flag is empty (no endpoint). Errors: those of
-// MetricsServer::Start, naming --metrics_listen.
-absl::StatusOr<std::unique_ptr<metrics::MetricsServer>> StartMetricsFromFlags(
-    const char* program, std::vector<const metrics::Registry*> registries);
 
 }  // namespace imca
 

@@ -88,6 +88,38 @@ TEST(RegistryTest, CallbacksAreReadAtEachScrapeAndSpecialValuesAreSpelled) {
   EXPECT_THAT(r.Text(), HasSubstr("test_queue_depth NaN\n"));
 }
 
+TEST(RegistryTest, ASnapshotIsReadOncePerScrapeForAllItsFamilies) {
+  Registry r;
+  int reads = 0;
+  double depth = 2;
+  r.AddSnapshot([&](Snapshot& s) {
+    ++reads;
+    s.Set(kRequests, 10 * reads);
+    s.Set(kDepth, depth);
+  });
+  EXPECT_EQ(reads, 1);  // Once at registration, to learn the families.
+  depth = 5;
+  EXPECT_EQ(r.Text(),
+            "# HELP test_requests_total Requests served.\n# TYPE test_requests_total counter\n"
+            "test_requests_total 20\n"
+            "# HELP test_queue_depth Items queued.\n# TYPE test_queue_depth gauge\n"
+            "test_queue_depth 5\n");
+  EXPECT_EQ(reads, 2);
+  EXPECT_THAT(r.Text(), HasSubstr("test_requests_total 30\n"));
+  EXPECT_EQ(reads, 3);
+}
+
+TEST(RegistryDeathTest, ASnapshotMustSetTheSameFamiliesEachTime) {
+  Registry r;
+  bool swap = false;
+  r.AddSnapshot([&](Snapshot& s) {
+    s.Set(swap ? kDepth : kRequests, 1);
+    s.Set(swap ? kRequests : kDepth, 1);
+  });
+  swap = true;
+  EXPECT_DEATH(r.Text(), "same families in the same order");
+}
+
 TEST(RegistryTest, HistogramsStayConsistentUnderConcurrentObservers) {
   Registry r;
   Histogram& h = r.AddHistogram(kLatency);

@@ -192,50 +192,21 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std
 void Learner::RegisterMetrics() {
   dropped_ = AddRejectionCounters(&registry_, kUnrollsDropped);
   policy_lag_ = &registry_.AddHistogram(kPolicyLag);
-  // Read under mu_ at each scrape.
-  registry_.AddCallback(kUnrollsReceived, [this] {
+  // One lock of mu_ per scrape for all of them.
+  registry_.AddSnapshot([this](metrics::Snapshot& s) {
     absl::MutexLock lock(&mu_);
-    return static_cast<double>(unrolls_received_);
-  });
-  registry_.AddCallback(kBatchesDropped, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(batches_dropped_);
-  });
-  registry_.AddCallback(kMinibatchesSkipped, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(minibatches_skipped_);
-  });
-  registry_.AddCallback(kQueueDepth, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(queue_.size());
-  });
-  registry_.AddCallback(kQueuedSteps, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(queued_steps_);
-  });
-  registry_.AddCallback(kPushersWaiting, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(pushers_waiting_);
-  });
-  registry_.AddCallback(kActorIds, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(actors_.size());
-  });
-  registry_.AddCallback(kIncarnations, [this] {
-    absl::MutexLock lock(&mu_);
-    return static_cast<double>(actor_incarnations_);
-  });
-  registry_.AddCallback(kBudgetDone, [this] {
-    absl::MutexLock lock(&mu_);
-    return done_ ? 1.0 : 0.0;
-  });
-  registry_.AddCallback(kStalled, [this] {
-    absl::MutexLock lock(&mu_);
-    return SecondsStalled(std::chrono::steady_clock::now());
-  });
-  registry_.AddCallback(kTraining, [this] {
-    absl::MutexLock lock(&mu_);
-    return SecondsTraining(std::chrono::steady_clock::now());
+    const auto now = std::chrono::steady_clock::now();
+    s.Set(kUnrollsReceived, static_cast<double>(unrolls_received_));
+    s.Set(kBatchesDropped, static_cast<double>(batches_dropped_));
+    s.Set(kMinibatchesSkipped, static_cast<double>(minibatches_skipped_));
+    s.Set(kQueueDepth, static_cast<double>(queue_.size()));
+    s.Set(kQueuedSteps, static_cast<double>(queued_steps_));
+    s.Set(kPushersWaiting, static_cast<double>(pushers_waiting_));
+    s.Set(kActorIds, static_cast<double>(actors_.size()));
+    s.Set(kIncarnations, static_cast<double>(actor_incarnations_));
+    s.Set(kBudgetDone, done_ ? 1.0 : 0.0);
+    s.Set(kStalled, SecondsStalled(now));
+    s.Set(kTraining, SecondsTraining(now));
   });
 }
 

@@ -9,6 +9,7 @@
 
 #include "absl/strings/str_split.h"
 #include "common/env.h"
+#include "common/metrics_testing.h"
 #include "common/featurizer.h"
 #include "common/test_unrolls.h"
 #include "absl/strings/str_cat.h"
@@ -155,12 +156,7 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   }
 }
 
-// The value of one series line ("name{labels}") of an exposition; -1 if absent.
-double Sample(const std::string& text, const std::string& series) {
-  const std::string key = "\n" + series + " ";
-  const size_t at = ("\n" + text).find(key);
-  return at == std::string::npos ? -1 : std::stod(text.substr(at + key.size() - 1));
-}
+using metrics::testing::SampleValue;
 
 TEST_F(LearnerTest, PrometheusFamiliesCountRefusalsByReasonAndEachTrainedUnrollsLag) {
   config_.budget_steps = 2 * 256;
@@ -169,7 +165,7 @@ TEST_F(LearnerTest, PrometheusFamiliesCountRefusalsByReasonAndEachTrainedUnrolls
   Learner* l = learner->get();
   // Every reason's series exists from the start, at zero.
   for (const char* reason : {"stale", "ahead", "over_cap", "duplicate", "invalid"}) {
-    EXPECT_EQ(Sample(l->metrics().Text(), absl::StrCat("imca_learner_unrolls_dropped_total{reason=\"", reason, "\"}")),
+    EXPECT_EQ(SampleValue(l->metrics().Text(), absl::StrCat("imca_learner_unrolls_dropped_total{reason=\"", reason, "\"}")),
               0)
         << reason;
   }
@@ -184,22 +180,22 @@ TEST_F(LearnerTest, PrometheusFamiliesCountRefusalsByReasonAndEachTrainedUnrolls
   ASSERT_TRUE(l->Push(Unroll(0, 2)).ok());
   trainer.join();
   const std::string text = l->metrics().Text();
-  EXPECT_EQ(Sample(text, R"(imca_learner_unrolls_dropped_total{reason="invalid"})"), 1) << text;
-  EXPECT_EQ(Sample(text, R"(imca_learner_unrolls_dropped_total{reason="ahead"})"), 1);
-  EXPECT_EQ(Sample(text, R"(imca_learner_unrolls_dropped_total{reason="stale"})"), 0);
-  EXPECT_EQ(Sample(text, "imca_learner_unrolls_received_total"), 2);
-  EXPECT_EQ(Sample(text, R"(imca_learner_policy_lag_versions_bucket{le="0"})"), 1);
-  EXPECT_EQ(Sample(text, R"(imca_learner_policy_lag_versions_bucket{le="1"})"), 2);
-  EXPECT_EQ(Sample(text, R"(imca_learner_policy_lag_versions_bucket{le="+Inf"})"), 2);
-  EXPECT_EQ(Sample(text, "imca_learner_policy_lag_versions_sum"), 1);
-  EXPECT_EQ(Sample(text, "imca_learner_policy_lag_versions_count"), 2);
+  EXPECT_EQ(SampleValue(text, R"(imca_learner_unrolls_dropped_total{reason="invalid"})"), 1) << text;
+  EXPECT_EQ(SampleValue(text, R"(imca_learner_unrolls_dropped_total{reason="ahead"})"), 1);
+  EXPECT_EQ(SampleValue(text, R"(imca_learner_unrolls_dropped_total{reason="stale"})"), 0);
+  EXPECT_EQ(SampleValue(text, "imca_learner_unrolls_received_total"), 2);
+  EXPECT_EQ(SampleValue(text, R"(imca_learner_policy_lag_versions_bucket{le="0"})"), 1);
+  EXPECT_EQ(SampleValue(text, R"(imca_learner_policy_lag_versions_bucket{le="1"})"), 2);
+  EXPECT_EQ(SampleValue(text, R"(imca_learner_policy_lag_versions_bucket{le="+Inf"})"), 2);
+  EXPECT_EQ(SampleValue(text, "imca_learner_policy_lag_versions_sum"), 1);
+  EXPECT_EQ(SampleValue(text, "imca_learner_policy_lag_versions_count"), 2);
   // The metrics.csv columns' families hold the last row's values.
-  EXPECT_EQ(Sample(text, "imca_learner_iterations_total"), 2);
-  EXPECT_EQ(Sample(text, "imca_learner_env_steps_total"), 512);
-  EXPECT_EQ(Sample(text, "imca_learner_policy_version"), 2);
-  EXPECT_EQ(Sample(text, "imca_learner_budget_done"), 1);
-  EXPECT_EQ(Sample(text, "imca_learner_queue_depth"), 0);
-  EXPECT_EQ(Sample(text, "imca_learner_actor_ids"), 1);
+  EXPECT_EQ(SampleValue(text, "imca_learner_iterations_total"), 2);
+  EXPECT_EQ(SampleValue(text, "imca_learner_env_steps_total"), 512);
+  EXPECT_EQ(SampleValue(text, "imca_learner_policy_version"), 2);
+  EXPECT_EQ(SampleValue(text, "imca_learner_budget_done"), 1);
+  EXPECT_EQ(SampleValue(text, "imca_learner_queue_depth"), 0);
+  EXPECT_EQ(SampleValue(text, "imca_learner_actor_ids"), 1);
   std::ifstream metrics(run_dir_ + "/metrics.csv");
   std::string header;
   ASSERT_TRUE(std::getline(metrics, header));

@@ -48,17 +48,11 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
         "Optimiser steps of the learned novelty models (rnd, sf)."},
        &v1::RewardStats::model_updates},
   };
-  // One Stats() per scrape (it takes the scorer's lock), read by every family.
-  static_assert(std::size(kExported) == std::tuple_size<decltype(scraped_)>::value);
-  registry_.AddCollector([this] {
+  // One Stats() per scrape (it takes the scorer's lock) for every family.
+  registry_.AddSnapshot([this](metrics::Snapshot& snapshot) {
     const v1::RewardStats stats = Stats();
-    for (size_t i = 0; i < std::size(kExported); ++i) {
-      scraped_[i].store(static_cast<double>((stats.*kExported[i].value)()), std::memory_order_relaxed);
-    }
+    for (const Exported& e : kExported) snapshot.Set(e.family, static_cast<double>((stats.*e.value)()));
   });
-  for (size_t i = 0; i < std::size(kExported); ++i) {
-    registry_.AddCallback(kExported[i].family, [this, i] { return scraped_[i].load(std::memory_order_relaxed); });
-  }
 }
 
 grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,

@@ -1,7 +1,6 @@
 #ifndef IMCA_REWARD_SERVER_REWARD_SERVICE_H_
 #define IMCA_REWARD_SERVER_REWARD_SERVICE_H_
 
-#include <array>
 #include <atomic>
 #include <utility>
 #include <memory>
@@ -79,7 +78,6 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   absl::Mutex scored_mu_;
   absl::flat_hash_map<std::string, std::pair<uint64_t, int64_t>> last_scored_ ABSL_GUARDED_BY(scored_mu_);
   metrics::Registry registry_;
-  std::array<std::atomic<double>, 7> scraped_{};  // The families' values, one Stats() per scrape.
 };
 
 }  // namespace imca::reward

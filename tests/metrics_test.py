@@ -92,8 +92,8 @@ def exposition_problems(text):
             continue
         name, labels_text, value = m.group(1), m.group(3) or "", parse_value(m.group(4))
         labels = tuple((k, v) for k, v, _ in LABEL.findall(labels_text))
-        family = re.sub(r"_(bucket|sum|count)$", "", name) if types.get(re.sub(r"_(bucket|sum|count)$", "", name)) \
-            == "histogram" else name
+        base = re.sub(r"_(bucket|sum|count)$", "", name)
+        family = base if types.get(base) == "histogram" else name
         if family not in types:
             problems.append(f"line {n}: {name} has no TYPE before its samples")
         if family != current:
@@ -371,11 +371,9 @@ class OneDefinitionTest(unittest.TestCase):
     copy no list the binaries can tell them (`--list`)."""
 
     def test_each_exported_family_is_defined_once_in_cpp(self):
-        names = set()
-        for program in launch.PROGRAMS:
-            for column in launch.facts()["metrics_columns"] if program == "learner" else []:
-                if column["prometheus"]:
-                    names.add(column["prometheus"])
+        # The learner's column families, as it reports them, and below every
+        # name the sources spell.
+        names = {c["prometheus"] for c in launch.facts()["metrics_columns"] if c["prometheus"]}
         sources = []
         for folder in ("common", "learner", "reward_server", "actor", "nn", "envtool"):
             for dirpath, _, files in os.walk(os.path.join(ROOT, folder)):

@@ -12,6 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/env.h"
+#include "common/metrics_testing.h"
 #include "common/grpc_util.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
@@ -25,13 +26,7 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-// The value of one series line ("name{labels}") of an exposition; -1 if absent.
-double Sample(const std::string& text, const std::string& series) {
-  const std::string key = "\n" + series + " ";
-  const size_t at = ("\n" + text).find(key);
-  if (at == std::string::npos) return -1;
-  return std::stod(text.substr(at + key.size() - 1));
-}
+using metrics::testing::SampleValue;
 
 grpc::Status GenericCall(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
                          const std::string& bytes) {
@@ -92,30 +87,30 @@ TEST_F(RpcMetricsTest, CountsEachCallByMethodAndCodeOnBothSides) {
   // The server's status is sent before the client sees it: wait for the
   // server side's count rather than race it.
   const std::string ok = R"(service="imca.v1.LearnerService",method="GetStatus",code="OK"})";
-  for (int i = 0; i < 200 && Sample(server_registry_.Text(), "imca_rpc_server_handled_total{" + ok) < 3; ++i) {
+  for (int i = 0; i < 200 && SampleValue(server_registry_.Text(), "imca_rpc_server_handled_total{" + ok) < 3; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   for (const auto& [side, registry] : {std::pair{"server", &server_registry_}, {"client", &client_registry_}}) {
     const std::string text = registry->Text();
     const std::string family = absl::StrCat("imca_rpc_", side, "_");
-    EXPECT_EQ(Sample(text, family + "handled_total{" + ok), 3) << side << "\n" << text;
-    EXPECT_EQ(Sample(text, family + "handled_total{" +
+    EXPECT_EQ(SampleValue(text, family + "handled_total{" + ok), 3) << side << "\n" << text;
+    EXPECT_EQ(SampleValue(text, family + "handled_total{" +
                                R"(service="imca.v1.LearnerService",method="GetPolicy",code="INVALID_ARGUMENT"})"),
               1)
         << side;
-    EXPECT_EQ(Sample(text, family + R"(started_total{service="imca.v1.LearnerService",method="GetStatus"})"), 3)
+    EXPECT_EQ(SampleValue(text, family + R"(started_total{service="imca.v1.LearnerService",method="GetStatus"})"), 3)
         << side;
     // One latency observation per completed call, each well under a second.
-    EXPECT_EQ(Sample(text, family + R"(handling_seconds_count{service="imca.v1.LearnerService",method="GetStatus"})"),
+    EXPECT_EQ(SampleValue(text, family + R"(handling_seconds_count{service="imca.v1.LearnerService",method="GetStatus"})"),
               3)
         << side;
-    EXPECT_EQ(Sample(text, family + R"(handling_seconds_bucket{service="imca.v1.LearnerService",method="GetStatus",le="0.512"})"),
+    EXPECT_EQ(SampleValue(text, family + R"(handling_seconds_bucket{service="imca.v1.LearnerService",method="GetStatus",le="0.512"})"),
               3)
         << side;
     // Every method has its series from the start (at zero), health included.
-    EXPECT_EQ(Sample(text, family + R"(started_total{service="imca.v1.LearnerService",method="PushUnrolls"})"), 0)
+    EXPECT_EQ(SampleValue(text, family + R"(started_total{service="imca.v1.LearnerService",method="PushUnrolls"})"), 0)
         << side;
-    EXPECT_EQ(Sample(text, family + R"(started_total{service="grpc.health.v1.Health",method="Check"})"), 0) << side;
+    EXPECT_EQ(SampleValue(text, family + R"(started_total{service="grpc.health.v1.Health",method="Check"})"), 0) << side;
   }
 }
 
@@ -124,7 +119,7 @@ TEST_F(RpcMetricsTest, MethodsOfUnknownServicesAreCountedAsOtherSoNoClientAddsSe
     EXPECT_EQ(GenericCall(channel_, method, "").error_code(), grpc::StatusCode::UNIMPLEMENTED);
   }
   const std::string client = client_registry_.Text();
-  EXPECT_EQ(Sample(client, R"(imca_rpc_client_handled_total{service="other",method="other",code="UNIMPLEMENTED"})"), 2)
+  EXPECT_EQ(SampleValue(client, R"(imca_rpc_client_handled_total{service="other",method="other",code="UNIMPLEMENTED"})"), 2)
       << client;
   EXPECT_THAT(client, Not(HasSubstr("Invented")));
   // The server never names them either (gRPC answers unknown methods itself).
@@ -174,9 +169,9 @@ TEST(RpcMetricsRefusedTest, AnOversizedRequestIsCountedAtTheClientOnly) {
             grpc::StatusCode::RESOURCE_EXHAUSTED);
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));  // Every server-side hook has run.
   const std::string get_policy = R"(service="imca.v1.LearnerService",method="GetPolicy")";
-  EXPECT_EQ(Sample(client_registry.Text(), "imca_rpc_client_handled_total{" + get_policy + R"(,code="RESOURCE_EXHAUSTED"})"),
+  EXPECT_EQ(SampleValue(client_registry.Text(), "imca_rpc_client_handled_total{" + get_policy + R"(,code="RESOURCE_EXHAUSTED"})"),
             1);
-  EXPECT_EQ(Sample(server_registry.Text(), "imca_rpc_server_started_total{" + get_policy + "}"), 0);
+  EXPECT_EQ(SampleValue(server_registry.Text(), "imca_rpc_server_started_total{" + get_policy + "}"), 0);
   EXPECT_THAT(server_registry.Text(), Not(HasSubstr("RESOURCE_EXHAUSTED")));
 }
 
