@@ -13,6 +13,7 @@
 #include "common/atomic_file.h"
 #include "common/grpc_util.h"
 #include "common/json.h"
+#include "common/status_macros.h"
 #include "common/transport.h"
 #include "common/unroll_check.h"
 
@@ -30,6 +31,36 @@ uint64_t RandomIncarnation() {
 
 }  // namespace
 
+ActorConfig DefaultActorConfig(absl::string_view scenario) {
+  ActorConfig config;
+  config.unroll_length = env::TuningOf(scenario).unroll_length.value_or(config.unroll_length);
+  return config;
+}
+
+absl::Status Actor::Validate(const ActorConfig& config) {
+  if (config.num_envs < 1) return absl::InvalidArgumentError("num_envs must be >= 1");
+  if (config.unroll_length < 1) return absl::InvalidArgumentError("unroll_length must be >= 1");
+  if (config.eval_envs < 0) return absl::InvalidArgumentError("eval_envs must be >= 0");
+  if (config.sync_unrolls < -1) {
+    return absl::InvalidArgumentError("sync_unrolls must be >= 0, or -1 (as the learner's policy asks)");
+  }
+  if (int64_t{config.num_envs} * config.unroll_length > kMaxTransitions) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("num_envs * unroll_length must be <= ", kMaxTransitions, " (an unroll's transitions)"));
+  }
+  if (config.rpc_timeout.count() < 100 || config.ack_timeout.count() < 100) {
+    return absl::InvalidArgumentError("rpc_timeout and ack_timeout must be >= 100 ms");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<Actor>> Actor::Create(const env::Scenario* scenario, const ActorConfig& config,
+                                                     std::shared_ptr<grpc::Channel> learner,
+                                                     std::shared_ptr<grpc::Channel> reward_server) {
+  IMCA_RETURN_IF_ERROR(Validate(config));
+  return std::make_unique<Actor>(scenario, config, std::move(learner), std::move(reward_server));
+}
+
 Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
              std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server)
     : scenario_(scenario),
@@ -40,7 +71,8 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
       envs_(scenario, config.num_envs, config.seed),
       eval_envs_(scenario, std::max(config.eval_envs, 1), config.seed ^ 0xe7a1e7a1e7a1ULL),
       rng_(config.seed * 7919 + 17),
-      incarnation_(config.incarnation != 0 ? config.incarnation : RandomIncarnation()) {
+      incarnation_(config.incarnation != 0 ? config.incarnation : RandomIncarnation()),
+      sync_unrolls_(std::max(config.sync_unrolls, 0)) {
   const int rows = std::max(config.num_envs, config.eval_envs) * scenario->num_agents();
   const int envs = std::max(config.num_envs, config.eval_envs);
   obs_.resize(static_cast<size_t>(rows) * featurizer_.obs_dim());
@@ -142,6 +174,19 @@ bool Actor::Adopt(const v1::Policy& policy) {
     policy_error_ = absl::InternalError(
         absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ", fits.message()));
     return false;
+  }
+  if (config_.sync_unrolls < 0) {
+    // As the learner asks: its share of env steps in whole unrolls.
+    const int64_t share = policy.sync_steps_per_actor();
+    const int64_t unroll_steps = int64_t{config_.num_envs} * config_.unroll_length;
+    if (share % unroll_steps != 0) {
+      policy_error_ = absl::FailedPreconditionError(absl::StrCat(
+          "the synchronous learner asks each actor for ", share, " env steps per policy version (its batch_steps / ",
+          "actors), not a whole number of this actor's unrolls of --envs x --unroll_length = ", unroll_steps,
+          " steps; change --envs or --unroll_length, or the learner's --batch_steps or --actors"));
+      return false;
+    }
+    sync_unrolls_ = static_cast<int>(share / unroll_steps);
   }
   policy_ = *std::move(mlp);
   counters_.policy_updates->Increment();
@@ -424,7 +469,7 @@ absl::Status Actor::Run() {
       continue;
     }
     const int64_t acted = policy_.has_value() ? policy_->version() : -1;
-    if (config_.sync_unrolls > 0 && version_unrolls_ >= config_.sync_unrolls) {
+    if (sync_unrolls_ > 0 && version_unrolls_ >= sync_unrolls_) {
       // Synchronous: this version's share is delivered; act next with the
       // policy the learner trains on it.
       WriteStatus("waiting_policy", /*force=*/false);

@@ -12,6 +12,7 @@
 
 #include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "common/env.h"
 #include "common/featurizer.h"
@@ -26,8 +27,8 @@ namespace imca::actor {
 
 struct ActorConfig {
   std::string actor_id = "actor-0";
-  int num_envs = 16;         // E training envs.
-  int unroll_length = 64;    // T steps per unroll.
+  int num_envs = 32;         // E training envs.
+  int unroll_length = 16;    // T steps per unroll (coop_nav: 32; env::TuningOf).
   // Envs run with the same policy but never trained on. 200 evaluation
   // episodes (the learner's success window) span about 25k joint training
   // steps of coop_nav with 2 actors x 32 envs at 16, and 190k at 2
@@ -48,8 +49,10 @@ struct ActorConfig {
   std::chrono::seconds trace_period{10};
   // Synchronous collection (learner --synchronous): after this many unrolls
   // acted with one policy version, wait for a newer version before acting
-  // again. 0: asynchronous, never wait.
-  int sync_unrolls = 0;
+  // again. 0: asynchronous, never wait. -1: as each policy asks
+  // (Policy.sync_steps_per_actor / (num_envs x unroll_length) unrolls, or
+  // asynchronously if it asks for none).
+  int sync_unrolls = -1;
   // This process's incarnation (Unroll.incarnation); 0: draw a random one.
   uint64_t incarnation = 0;
   // If set, a one-line JSON progress record is written here (atomically) at
@@ -64,6 +67,10 @@ struct ActorConfig {
   bool tls = false;
 };
 
+// The defaults of an actor of `scenario`: ActorConfig's, joined with the
+// scenario's tuning (env::TuningOf). The actor binary's flags override them.
+ActorConfig DefaultActorConfig(absl::string_view scenario);
+
 // Steps vectorised environments with a local copy of the newest policy, gets
 // each unroll's per-agent intrinsic rewards from the reward server (one Score
 // call per unroll) and streams the unroll to the learner. Every call has a
@@ -76,12 +83,22 @@ struct ActorConfig {
 // at most the unroll in hand. Not thread-safe: one thread calls Run().
 class Actor {
  public:
+  // Errors: INVALID_ARGUMENT naming the field of `config` out of range
+  // (num_envs, unroll_length, eval_envs, sync_unrolls, the timeouts, an
+  // unroll over kMaxTransitions).
+  static absl::Status Validate(const ActorConfig& config);
+  // The actor after Validate(config); the constructor takes a valid config.
+  static absl::StatusOr<std::unique_ptr<Actor>> Create(const env::Scenario* scenario, const ActorConfig& config,
+                                                       std::shared_ptr<grpc::Channel> learner,
+                                                       std::shared_ptr<grpc::Channel> reward_server);
   Actor(const env::Scenario* scenario, const ActorConfig& config,
         std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server);
 
   // Acts until a shutdown signal arrives or the learner reports its budget
   // done. Blocks. Returns OK on either; INTERNAL if the learner publishes a
-  // policy that does not fit this scenario.
+  // policy that does not fit this scenario; FAILED_PRECONDITION if a
+  // synchronous learner asks for a share of env steps that is not a whole
+  // number of this actor's unrolls (sync_unrolls -1).
   absl::Status Run();
 
   int64_t unrolls_pushed() const { return unrolls_pushed_; }
@@ -179,6 +196,7 @@ class Actor {
   };
   Counters counters_;
   int version_unrolls_ = 0;  // Unrolls pushed with the current policy version.
+  int sync_unrolls_ = 0;     // In effect: config_.sync_unrolls, or as the policy asks.
 
   // Scratch buffers, sized once.
   std::vector<float> obs_;

@@ -101,6 +101,7 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
 
   learner::LearnerConfig learner_config;
   learner_config.batch_steps = kEnvs * kLength;  // One unroll per iteration.
+  learner_config.synchronous = false;
   learner_config.budget_steps = kIterations * kEnvs * kLength;
   learner_config.max_policy_lag = 100;
   learner_config.checkpoint_every = 0;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "absl/flags/flag.h"
@@ -22,21 +23,28 @@
 
 ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
 ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
-ABSL_FLAG(int, envs, imca::actor::ActorConfig{}.num_envs, "environments stepped together");
-ABSL_FLAG(int, unroll_length, imca::actor::ActorConfig{}.unroll_length, "steps per unroll");
-ABSL_FLAG(int, eval_envs, imca::actor::ActorConfig{}.eval_envs,
-          "evaluation environments (same policy, not trained on)");
-ABSL_FLAG(uint64_t, seed, 1, "seed of environments and action sampling (0: draw one from the clock and --actor_id)");
+namespace {
+const imca::actor::ActorConfig kDefaults;  // Every default's one definition (with the scenario's tuning).
+}  // namespace
+
+ABSL_FLAG(int, envs, kDefaults.num_envs, "environments stepped together");
+ABSL_FLAG(std::optional<int>, unroll_length, std::nullopt, "steps per unroll (default: the scenario's; --list)");
+ABSL_FLAG(int, eval_envs, kDefaults.eval_envs, "evaluation environments (same policy, not trained on)");
+ABSL_FLAG(uint64_t, seed, kDefaults.seed,
+          "seed of environments and action sampling (0: draw one from the clock and --actor_id)");
 ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hostname:pid)");
-ABSL_FLAG(int, rpc_timeout_ms, 10000, "deadline of every RPC");
-ABSL_FLAG(int, ack_timeout_ms, 60000,
+ABSL_FLAG(int, rpc_timeout_ms, static_cast<int>(kDefaults.rpc_timeout.count()), "deadline of every RPC");
+ABSL_FLAG(int, ack_timeout_ms, static_cast<int>(kDefaults.ack_timeout.count()),
           "longest wait for the learner's ack of one unroll; past it the stream is cancelled and the unroll resent");
 ABSL_FLAG(int, signal_exit_code, 0,
           "exit code when SIGINT/SIGTERM stops the actor before the learner is done (Kubernetes "
           "Jobs: 143, so that an evicted actor is replaced rather than counted as finished)");
-ABSL_FLAG(int, sync_unrolls, 0,
-          "synchronous collection (learner --synchronous): act this many unrolls with each policy "
-          "version, then wait for the next version (0: asynchronous)");
+ABSL_FLAG(int, sync_unrolls, kDefaults.sync_unrolls,
+          "act this many unrolls with each policy version, then wait for the next version (0: asynchronous; "
+          "-1: as the learner's policy asks, its batch_steps / actors env steps for a synchronous learner)");
+ABSL_FLAG(bool, print_config, false,
+          "resolve the configuration (defaults, the scenario's tuning, the flags given), validate it, print it as "
+          "JSON (flag name: value) and exit: 0, or 2 with the error");
 ABSL_FLAG(bool, list, false,
           "print this binary's choices and limits (scenarios, the unroll cap, exit codes) as JSON and exit: what "
           "the Python tools ask instead of copying them");
@@ -44,6 +52,30 @@ ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor; docs/reliability.md)");
 ABSL_FLAG(std::string, trace_file, "",
           "if set, write env 0's newest finished training episode with its credit shares here (CSV)");
+
+namespace {
+
+// The training configuration as flag name: value (--print_config, and per
+// scenario in --list); the per-process identity (id, seed, files) is left out.
+std::string ConfigJson(const imca::actor::ActorConfig& c) {
+  return imca::JsonObject()
+      .Add("envs", c.num_envs)
+      .Add("unroll_length", c.unroll_length)
+      .Add("eval_envs", c.eval_envs)
+      .Add("sync_unrolls", c.sync_unrolls)
+      .Text();
+}
+
+// Each scenario's defaults (DefaultActorConfig).
+std::string DefaultsJson() {
+  imca::JsonObject scenarios;
+  for (const std::string& scenario : imca::env::ScenarioNames()) {
+    scenarios.Raw(scenario, ConfigJson(imca::actor::DefaultActorConfig(scenario)));
+  }
+  return scenarios.Text();
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA actor: steps environments and streams unrolls");
@@ -53,9 +85,12 @@ int main(int argc, char** argv) {
     std::printf("%s\n", JsonObject()
                             .Add("program", "actor")
                             .Add("scenarios", env::ScenarioNames())
+                            .Add("default_scenario", env::ScenarioConfig{}.name)
                             .Add("max_unroll_transitions", kMaxTransitions)
                             .Add("max_door_timer", env::kMaxDoorTimer)
                             .Add("exit_refused", kExitRefused)
+                            .Add("exit_misconfigured", kExitMisconfigured)
+                            .Raw("actor_defaults", DefaultsJson())
                             .Text()
                             .c_str());
     return 0;
@@ -74,35 +109,30 @@ int main(int argc, char** argv) {
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return fail(std::string(scenario.status().message()));
 
-  actor::ActorConfig config;
+  actor::ActorConfig config = actor::DefaultActorConfig((*scenario)->name());
   config.actor_id = id;
   config.num_envs = absl::GetFlag(FLAGS_envs);
-  config.unroll_length = absl::GetFlag(FLAGS_unroll_length);
+  if (const auto length = absl::GetFlag(FLAGS_unroll_length)) config.unroll_length = *length;
   config.eval_envs = absl::GetFlag(FLAGS_eval_envs);
   config.seed = absl::GetFlag(FLAGS_seed);
+  config.sync_unrolls = absl::GetFlag(FLAGS_sync_unrolls);
+  config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
+  config.ack_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_ack_timeout_ms));
+  config.trace_file = absl::GetFlag(FLAGS_trace_file);
+  config.status_file = absl::GetFlag(FLAGS_status_file);
+  if (absl::Status valid = actor::Actor::Validate(config); !valid.ok()) return fail(std::string(valid.message()));
+  if (absl::GetFlag(FLAGS_print_config)) {
+    std::printf("%s\n", ConfigJson(config).c_str());
+    return 0;
+  }
   if (config.seed == 0) {
     // The id (hostname:pid by default) tells replicas apart where every
     // container's pid is 1; the clock tells restarts apart.
     config.seed = static_cast<uint64_t>(std::chrono::system_clock::now().time_since_epoch().count()) ^
                   std::hash<std::string>{}(id);
   }
-  config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
-  config.ack_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_ack_timeout_ms));
-  if (config.rpc_timeout.count() < 100 || config.ack_timeout.count() < 100) {
-    return fail("--rpc_timeout_ms and --ack_timeout_ms must be >= 100");
-  }
-  config.trace_file = absl::GetFlag(FLAGS_trace_file);
-  config.status_file = absl::GetFlag(FLAGS_status_file);
   const int signal_exit_code = absl::GetFlag(FLAGS_signal_exit_code);
   if (signal_exit_code < 0 || signal_exit_code > 255) return fail("--signal_exit_code must be in [0, 255]");
-  if (config.num_envs < 1) return fail("--envs must be >= 1");
-  if (config.unroll_length < 1) return fail("--unroll_length must be >= 1");
-  if (config.eval_envs < 0) return fail("--eval_envs must be >= 0");
-  config.sync_unrolls = absl::GetFlag(FLAGS_sync_unrolls);
-  if (config.sync_unrolls < 0) return fail("--sync_unrolls must be >= 0");
-  if (int64_t{config.num_envs} * config.unroll_length > kMaxTransitions) {
-    return fail(absl::StrCat("--envs * --unroll_length must be <= ", kMaxTransitions));
-  }
 
   absl::StatusOr<TransportConfig> transport = ClientTransportFromFlags();
   if (!transport.ok()) return fail(std::string(transport.status().message()));
@@ -118,13 +148,19 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "%s: dialling the learner at %s and the reward server at %s (%s)\n", id.c_str(),
                absl::GetFlag(FLAGS_learner).c_str(), absl::GetFlag(FLAGS_reward_server).c_str(),
                TransportSummary(*transport, /*server=*/false).c_str());
-  actor::Actor actor(scenario->get(), config, *std::move(learner), *std::move(reward_server));
+  auto made = actor::Actor::Create(scenario->get(), config, *std::move(learner), *std::move(reward_server));
+  if (!made.ok()) return fail(std::string(made.status().message()));
+  actor::Actor& actor = **made;
   auto metrics_server = process_metrics.Serve(id.c_str(), {&actor.metrics()});
   if (!metrics_server.ok()) return fail(std::string(metrics_server.status().message()));
   const absl::Status status = actor.Run();
   if (IsRefusal(status)) {
     fail(std::string(status.message()));
     return kExitRefused;  // A supervisor must not restart it: the same credentials would be refused again.
+  }
+  if (absl::IsFailedPrecondition(status)) {
+    fail(std::string(status.message()));
+    return kExitMisconfigured;  // Restarted, it would meet the same learner.
   }
   if (!status.ok()) return fail(std::string(status.message()));
   std::fprintf(stderr, "%s: stopped after %lld unrolls\n", id.c_str(),

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -148,6 +149,22 @@ class Scenario {
 
 // Names of the available scenarios.
 std::vector<std::string> ScenarioNames();
+
+// Where a scenario's training differs from the components' general defaults
+// (LearnerConfig, PpoConfig, ActorConfig): EnvPool's per-env default config,
+// kept beside the scenario's spec. Unset fields take the general default;
+// flags given by a user win over both (DefaultLearnerConfig,
+// DefaultActorConfig resolve them). docs/learner.md, "Defaults", has how
+// each was measured.
+struct ScenarioTuning {
+  std::optional<int64_t> batch_steps;        // LearnerConfig::batch_steps.
+  std::optional<double> learning_rate;       // PpoConfig::learning_rate.
+  std::optional<bool> separate_optimizers;   // PpoConfig::separate_optimizers.
+  std::optional<int> unroll_length;          // ActorConfig::unroll_length.
+};
+
+// The tuning of scenario `name` (an unknown name: none, all general defaults).
+const ScenarioTuning& TuningOf(absl::string_view name);
 
 // Creates a scenario by name, loading its map (config.map_path or
 // <map_dir>/<name>.txt). Errors: INVALID_ARGUMENT for an unknown scenario, an

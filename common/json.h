@@ -2,6 +2,7 @@
 #define IMCA_COMMON_JSON_H_
 
 #include <cstdint>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,21 @@ inline std::string JsonStrings(const std::vector<std::string>& items) {
 
 // Builds one JSON object, keys in the order added: what the binaries write
 // as status files and print for --list. Not thread-safe.
+// The shortest decimal that parses back to `value` (finite values): whole
+// numbers as integers, others by the fewest %g digits that round-trip (as a
+// float, for a float).
+template <typename T>
+std::string ExactNumber(T value) {
+  if (value == static_cast<T>(static_cast<int64_t>(value)) && value < T(1e15) && value > T(-1e15)) {
+    return absl::StrCat(static_cast<int64_t>(value));
+  }
+  for (int digits = 1; digits < 17; ++digits) {
+    std::string text = absl::StrFormat("%.*g", digits, static_cast<double>(value));
+    if (static_cast<T>(std::strtod(text.c_str(), nullptr)) == value) return text;
+  }
+  return absl::StrFormat("%.17g", static_cast<double>(value));
+}
+
 class JsonObject {
  public:
   JsonObject& Add(absl::string_view key, absl::string_view value) { return Raw(key, JsonString(value)); }
@@ -46,6 +62,11 @@ class JsonObject {
   JsonObject& Add(absl::string_view key, double value, int digits) {
     return Raw(key, absl::StrFormat("%.*f", digits, value));
   }
+  JsonObject& Add(absl::string_view key, uint64_t value) { return Raw(key, absl::StrCat(value)); }
+  // The shortest decimal that reads back as exactly `value` (a flag value
+  // printed by --print_config passes back unchanged).
+  JsonObject& AddExact(absl::string_view key, double value) { return Raw(key, ExactNumber(value)); }
+  JsonObject& AddExact(absl::string_view key, float value) { return Raw(key, ExactNumber(value)); }
   JsonObject& Add(absl::string_view key, const std::vector<std::string>& values) {
     return Raw(key, JsonStrings(values));
   }

@@ -5,7 +5,7 @@
 
 #include "absl/flags/flag.h"
 
-ABSL_FLAG(std::string, scenario, "coop_nav", "scenario name");
+ABSL_FLAG(std::string, scenario, imca::env::ScenarioConfig{}.name, "scenario name");
 ABSL_FLAG(std::string, map, "", "map file (default: maps/<scenario>.txt)");
 ABSL_FLAG(int, num_agents, 0, "agents (0: scenario default)");
 ABSL_FLAG(int, step_limit, 0, "episode step limit (0: scenario default)");

@@ -115,6 +115,11 @@ std::string PeerIdentity(const grpc::ServerContext& context);
 // must not restart it (the same credentials would be refused again).
 inline constexpr int kExitRefused = 3;
 
+// The exit code of a process whose configuration cannot work with its peers
+// (an actor whose unroll size does not divide a synchronous learner's
+// share): a supervisor must not restart it either.
+inline constexpr int kExitMisconfigured = 4;
+
 // True when a server refused this client's credentials (UNAUTHENTICATED,
 // PERMISSION_DENIED): retrying cannot help, so a client stops.
 bool IsRefusal(const absl::Status& status);

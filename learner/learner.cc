@@ -98,9 +98,30 @@ std::vector<std::string> CriticInputNames() { return Names(kCriticInputNames); }
 std::vector<std::string> TimeLimitNames() { return Names(kTimeLimitNames); }
 absl::StatusOr<Algo> ParseAlgo(const std::string& name) { return ParseName(name, kAlgoNames); }
 
+LearnerConfig DefaultLearnerConfig(absl::string_view scenario, Algo algo) {
+  LearnerConfig config;
+  config.algo = algo;
+  const env::ScenarioTuning& tuning = env::TuningOf(scenario);
+  config.batch_steps = tuning.batch_steps.value_or(config.batch_steps);
+  config.ppo.learning_rate = tuning.learning_rate.value_or(config.ppo.learning_rate);
+  config.ppo.separate_optimizers = tuning.separate_optimizers.value_or(config.ppo.separate_optimizers);
+  if (algo == Algo::kMaddpg) config.synchronous = false;
+  return config;
+}
+
 absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
                                                          const LearnerConfig& config) {
   if (config.batch_steps < 1) return absl::InvalidArgumentError("batch_steps must be >= 1");
+  if (config.actors < 1) return absl::InvalidArgumentError("actors must be >= 1");
+  if (config.synchronous && config.batch_steps % config.actors != 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "batch_steps ", config.batch_steps, " is not a multiple of actors ", config.actors,
+        " (a synchronous learner asks each actor for batch_steps / actors env steps per policy version)"));
+  }
+  if (config.budget_steps < 0) return absl::InvalidArgumentError("budget_steps must be >= 0 (0: no budget)");
+  if (config.checkpoint_every < 0 || !(config.checkpoint_seconds >= 0)) {
+    return absl::InvalidArgumentError("checkpoint_every and checkpoint_seconds must be >= 0");
+  }
   if (config.max_policy_lag < 0) return absl::InvalidArgumentError("max_policy_lag must be >= 0");
   if (config.queue_capacity < 1) return absl::InvalidArgumentError("queue_capacity must be >= 1");
   if (config.edti && config.algo != Algo::kMappo) return absl::InvalidArgumentError("edti is MAPPO's (algo mappo)");
@@ -636,7 +657,13 @@ void Learner::Publish() {
   last_progress_ = std::chrono::steady_clock::now();
   if (policy_ != nullptr) ++version_;
   version_steps_ = 0;
-  policy_ = std::make_shared<const v1::Policy>(algorithm_->ExportPolicy(version_));
+  policy_ = ExportPolicy();
+}
+
+std::shared_ptr<const v1::Policy> Learner::ExportPolicy() const {
+  v1::Policy policy = algorithm_->ExportPolicy(version_);
+  policy.set_sync_steps_per_actor(config_.synchronous ? config_.batch_steps / config_.actors : 0);
+  return std::make_shared<const v1::Policy>(std::move(policy));
 }
 
 IterationRecord Learner::Record(const IterationStats& stats, double lag, const CreditStats& credit) const {
@@ -843,7 +870,7 @@ absl::Status Learner::RestoreFrom(const std::string& meta_path) {
   env_steps_ = env_steps;
   trained_ = accepted;
   accepted_ = std::move(accepted);
-  policy_ = std::make_shared<const v1::Policy>(algorithm_->ExportPolicy(version_));
+  policy_ = ExportPolicy();
   return absl::OkStatus();
 }
 

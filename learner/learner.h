@@ -133,6 +133,9 @@ class Learner {
   // added), publishes and writes metrics.
   absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);
   void Publish();
+  // The algorithm's current weights as policy version_, with the
+  // collection contract (Policy.sync_steps_per_actor).
+  std::shared_ptr<const v1::Policy> ExportPolicy() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Means over one batch of the reward server's credit diagnostics.
   struct CreditStats {
     double intrinsic = 0;         // r_i^a per agent-step.

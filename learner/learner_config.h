@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "learner/gae.h"
 #include "learner/ppo_trainer.h"
 
@@ -75,9 +76,16 @@ struct LearnerConfig {
   // Synchronous collection: an iteration trains only on unrolls acted with
   // the policy it starts from (lag 0). Push refuses any other version, and
   // once batch_steps of the current version are queued, further unrolls of
-  // it (both as "stale ..."). Actors should act a fixed number of unrolls
-  // per version and then wait for the next (actor --sync_unrolls).
-  bool synchronous = false;
+  // it (both as "stale ..."). Each published policy asks every actor for
+  // batch_steps / actors env steps of it (Policy.sync_steps_per_actor); an
+  // actor acts them and waits for the next version. MADDPG's default is
+  // asynchronous (DefaultLearnerConfig): it learns from a replay of any age.
+  bool synchronous = true;
+  // The actors that collect for a synchronous learner; batch_steps must be a
+  // multiple of it. Fewer actors than this stall a synchronous learner
+  // (each version waits for shares nobody acts); more waste the unrolls
+  // refused once the batch is full.
+  int actors = 2;
   // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
   // value of interaction (EdtiInteractionRewards, learner/gae.h, from the
   // unroll's influences and the critic's values of the influenced agents),
@@ -91,13 +99,13 @@ struct LearnerConfig {
   double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int (MADDPG: r = r_ext + c_int r_int).
   // Joint env steps (T*E summed over unrolls) per iteration: MAPPO's batch,
   // MADDPG's interval between policy publications.
-  int64_t batch_steps = 4096;
+  int64_t batch_steps = 1024;
   int max_policy_lag = 4;         // Unrolls older than this many versions are dropped (on-policy only).
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
   // Distinct actor ids remembered (exactly-once bookkeeping, the status's
   // list); an unroll of one more is refused (RESOURCE_EXHAUSTED).
   int max_actor_ids = 1 << 16;
-  int64_t budget_steps = 0;       // Stop after this many joint env steps (0: never).
+  int64_t budget_steps = 2000000;  // Stop after this many joint env steps (0: never).
   std::string run_dir;            // metrics.csv and checkpoints/ go here ("" = none).
   // If set, a CSV row per trained unroll (iteration, actor_id, incarnation,
   // sequence, policy_version); rows of iterations a restart rolled back are
@@ -115,6 +123,13 @@ struct LearnerConfig {
   // so a large map with large unrolls is an error, not an out-of-memory kill.
   int64_t max_batch_bytes = int64_t{8192} * 1000 * 1000;  // --max_batch_mb 8192
 };
+
+// The defaults of a learner of `scenario` trained by `algo`, in the order they
+// join: this file's and PpoConfig's, the scenario's tuning (env::TuningOf,
+// beside the scenario's spec), then MADDPG's asynchronous collection. The
+// one definition every way of starting the learner resolves (the binary's
+// flags override it, --list prints it per scenario).
+LearnerConfig DefaultLearnerConfig(absl::string_view scenario, Algo algo);
 
 }  // namespace imca::learner
 

@@ -30,6 +30,7 @@ class LearnerTest : public ::testing::Test {
     run_dir_ = ::testing::TempDir() + "/learner_test_" + std::to_string(getpid());
     std::filesystem::remove_all(run_dir_);
     config_.batch_steps = 256;
+    config_.synchronous = false;  // The tests of synchronous admission say so.
     config_.run_dir = run_dir_;
     config_.checkpoint_every = 0;
     config_.max_policy_lag = 1;

@@ -1,5 +1,6 @@
 // The learner: wires flags to a Learner and serves LearnerService.
 #include <cstdio>
+#include <optional>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -32,7 +33,7 @@ namespace {
 const imca::learner::LearnerConfig kDefaults;
 }  // namespace
 
-ABSL_FLAG(int64_t, steps, 2000000, "budget in joint env steps (0: until stopped)");
+ABSL_FLAG(int64_t, steps, kDefaults.budget_steps, "budget in joint env steps (0: until stopped)");
 ABSL_FLAG(std::string, algo, imca::learner::AlgoName(kDefaults.algo),
           "mappo (on-policy PPO) or maddpg (off-policy, replay buffer; docs/learner.md)");
 ABSL_FLAG(int, maddpg_hidden, kDefaults.maddpg.hidden, "maddpg: hidden layer width (actor and critic)");
@@ -50,11 +51,15 @@ ABSL_FLAG(double, updates_per_step, kDefaults.maddpg.updates_per_step,
           "actors are slowed to it");
 ABSL_FLAG(bool, maddpg_share, kDefaults.maddpg.share_parameters,
           "maddpg: one actor and one critic (agent id in the input) for all agents; false: one of each per agent");
-ABSL_FLAG(int64_t, batch_steps, kDefaults.batch_steps,
-          "joint env steps per iteration (mappo: the PPO batch; maddpg: between policy publications)");
+ABSL_FLAG(std::optional<int64_t>, batch_steps, std::nullopt,
+          "joint env steps per iteration (mappo: the PPO batch; maddpg: between policy publications); default: "
+          "the scenario's (--list)");
+ABSL_FLAG(int, actors, kDefaults.actors,
+          "actors collecting for a synchronous learner: each policy version asks each for batch_steps / actors "
+          "env steps");
 ABSL_FLAG(int, epochs, kDefaults.ppo.epochs, "PPO epochs per iteration");
 ABSL_FLAG(int, minibatches, kDefaults.ppo.minibatches, "PPO minibatches per epoch");
-ABSL_FLAG(double, lr, kDefaults.ppo.learning_rate, "Adam learning rate");
+ABSL_FLAG(std::optional<double>, lr, std::nullopt, "Adam learning rate (default: the scenario's; --list)");
 ABSL_FLAG(double, entropy_coef, kDefaults.ppo.entropy_coef, "entropy bonus coefficient");
 ABSL_FLAG(double, clip, kDefaults.ppo.clip, "PPO ratio clip");
 ABSL_FLAG(double, value_coef, kDefaults.ppo.value_coef, "weight of the value loss");
@@ -69,27 +74,35 @@ ABSL_FLAG(std::string, objective, imca::learner::PpoObjectiveName(kDefaults.ppo.
           "decoupled (a proximal policy recomputed by the learner; behaviour only as importance weight)");
 ABSL_FLAG(bool, layer_norm, kDefaults.ppo.layer_norm,
           "LayerNorm on the input and after every hidden layer (actor and critic)");
-ABSL_FLAG(bool, separate_optimizers, kDefaults.ppo.separate_optimizers,
-          "one Adam (and grad-norm clip) for the actor, one for the critic");
+ABSL_FLAG(std::optional<bool>, separate_optimizers, std::nullopt,
+          "one Adam (and grad-norm clip) for the actor, one for the critic; false: one over both (default: the "
+          "scenario's; --list)");
 ABSL_FLAG(int, value_heads, kDefaults.ppo.value_heads,
           "2: extrinsic and intrinsic value heads; 1: one head on extrinsic + intrinsic_coef * intrinsic "
           "(3: with --edti)");
-ABSL_FLAG(bool, edti, false,
+ABSL_FLAG(bool, edti, kDefaults.edti,
           "EDTI's value of interaction from the unrolls' influences (reward server --reward edti); the critic "
           "gets a third head (--value_heads is then 3); docs/baselines.md");
-ABSL_FLAG(double, edti_tv, 1.0, "edti: coefficient of the transition term (EDTI's gamma_coor_tv)");
-ABSL_FLAG(double, edti_tv_ext, 0.1, "edti: weight of the partner's extrinsic value (gamma_coor_tv_e)");
-ABSL_FLAG(double, edti_tv_int, 1.0, "edti: weight of the partner's curiosity value (gamma_coor_tv_c)");
-ABSL_FLAG(double, edti_partner, 1.0, "edti: coefficient of the partner-reward term (gamma_coor_r)");
-ABSL_FLAG(double, edti_partner_ext, 0.1, "edti: weight of the partner's extrinsic reward (gamma_coor_r_e)");
-ABSL_FLAG(double, edti_partner_int, 0.1, "edti: weight of the partner's curiosity reward (gamma_coor_r_c)");
+ABSL_FLAG(double, edti_tv, kDefaults.edti_coefficients.tv,
+          "edti: coefficient of the transition term (EDTI's gamma_coor_tv)");
+ABSL_FLAG(double, edti_tv_ext, kDefaults.edti_coefficients.tv_ext,
+          "edti: weight of the partner's extrinsic value (gamma_coor_tv_e)");
+ABSL_FLAG(double, edti_tv_int, kDefaults.edti_coefficients.tv_int,
+          "edti: weight of the partner's curiosity value (gamma_coor_tv_c)");
+ABSL_FLAG(double, edti_partner, kDefaults.edti_coefficients.partner,
+          "edti: coefficient of the partner-reward term (gamma_coor_r)");
+ABSL_FLAG(double, edti_partner_ext, kDefaults.edti_coefficients.partner_ext,
+          "edti: weight of the partner's extrinsic reward (gamma_coor_r_e)");
+ABSL_FLAG(double, edti_partner_int, kDefaults.edti_coefficients.partner_int,
+          "edti: weight of the partner's curiosity reward (gamma_coor_r_c)");
 ABSL_FLAG(std::string, critic_input, imca::learner::CriticInputName(kDefaults.critic_input),
           "the centralised critic's input besides the agent id: state (global state) or joint_obs "
           "(all agents' observations)");
 ABSL_FLAG(std::string, time_limit, imca::learner::TimeLimitName(kDefaults.time_limit),
           "the step limit for the returns: bootstrap (truncation) or terminal (no bootstrap)");
-ABSL_FLAG(bool, synchronous, kDefaults.synchronous,
-          "train each iteration only on unrolls of the policy it starts from (actors --sync_unrolls)");
+ABSL_FLAG(std::optional<bool>, synchronous, std::nullopt,
+          "train each iteration only on unrolls of the policy it starts from, each actor acting batch_steps / "
+          "actors steps per version (default: true for mappo, false for maddpg)");
 ABSL_FLAG(double, hidden_gain, kDefaults.ppo.hidden_gain, "orthogonal init gain of the hidden layers");
 ABSL_FLAG(double, value_clip, kDefaults.ppo.value_clip,
           "clip value predictions to this distance from the iteration's start (normalised; 0: off)");
@@ -105,7 +118,7 @@ ABSL_FLAG(uint64_t, seed, kDefaults.ppo.seed, "seed of network initialisation an
 ABSL_FLAG(int, threads, kDefaults.ppo.threads, "LibTorch intra-op threads");
 ABSL_FLAG(bool, concurrent_critic, kDefaults.ppo.concurrent_critic,
           "run each minibatch's critic pass on a second thread, concurrently with the actor's (same result)");
-ABSL_FLAG(int64_t, max_batch_mb, 8192,
+ABSL_FLAG(int64_t, max_batch_mb, kDefaults.max_batch_bytes / 1000000,
           "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
 ABSL_FLAG(int, max_streams, imca::learner::LearnerServiceImpl::kDefaultMaxStreams,
           "unroll streams served at once (one per actor), and as many GetPolicy calls waiting for a new "
@@ -119,6 +132,9 @@ ABSL_FLAG(std::string, status_file, "",
 ABSL_FLAG(bool, list, false,
           "print this binary's choices and limits (scenarios, algorithms, metrics.csv columns, caps) as JSON and "
           "exit: what the Python tools ask instead of copying them");
+ABSL_FLAG(bool, print_config, false,
+          "resolve the configuration (defaults, the scenario's tuning, the flags given), validate it as a start "
+          "would, print it as JSON (flag name: value) and exit: 0, or 2 with the error");
 ABSL_FLAG(int, signal_exit_code, 0,
           "exit code when SIGINT/SIGTERM stops training before the budget (Kubernetes Jobs: 143, "
           "so that an evicted learner is replaced rather than counted as finished)");
@@ -128,6 +144,164 @@ namespace {
 int Fail(const std::string& message) {
   std::fprintf(stderr, "learner: %s\n", message.c_str());
   return 2;
+}
+
+// The configuration the flags resolve: DefaultLearnerConfig for the
+// scenario and --algo, then every flag given. Errors name the flag.
+absl::StatusOr<imca::learner::LearnerConfig> ConfigFromFlags(absl::string_view scenario) {
+  using namespace imca;
+  absl::StatusOr<learner::Algo> algo = learner::ParseAlgo(absl::GetFlag(FLAGS_algo));
+  if (!algo.ok()) return absl::InvalidArgumentError(absl::StrCat("--algo: ", algo.status().message()));
+  learner::LearnerConfig config = learner::DefaultLearnerConfig(scenario, *algo);
+  config.maddpg.hidden = absl::GetFlag(FLAGS_maddpg_hidden);
+  config.maddpg.actor_lr = absl::GetFlag(FLAGS_maddpg_actor_lr);
+  config.maddpg.critic_lr = absl::GetFlag(FLAGS_maddpg_critic_lr);
+  config.maddpg.tau = absl::GetFlag(FLAGS_maddpg_tau);
+  config.maddpg.max_grad_norm = absl::GetFlag(FLAGS_maddpg_max_grad_norm);
+  config.maddpg.policy_reg = absl::GetFlag(FLAGS_maddpg_policy_reg);
+  config.maddpg.batch_size = absl::GetFlag(FLAGS_maddpg_batch);
+  config.maddpg.buffer_transitions = absl::GetFlag(FLAGS_maddpg_buffer);
+  config.maddpg.learning_starts = absl::GetFlag(FLAGS_maddpg_learning_starts);
+  config.maddpg.updates_per_step = absl::GetFlag(FLAGS_updates_per_step);
+  config.maddpg.share_parameters = absl::GetFlag(FLAGS_maddpg_share);
+  config.ppo.hidden = absl::GetFlag(FLAGS_hidden);
+  if (const auto lr = absl::GetFlag(FLAGS_lr)) config.ppo.learning_rate = *lr;
+  config.ppo.epochs = absl::GetFlag(FLAGS_epochs);
+  config.ppo.minibatches = absl::GetFlag(FLAGS_minibatches);
+  config.ppo.entropy_coef = absl::GetFlag(FLAGS_entropy_coef);
+  config.ppo.clip = absl::GetFlag(FLAGS_clip);
+  config.ppo.value_coef = absl::GetFlag(FLAGS_value_coef);
+  config.ppo.max_grad_norm = absl::GetFlag(FLAGS_max_grad_norm);
+  config.ppo.layer_norm = absl::GetFlag(FLAGS_layer_norm);
+  if (const auto separate = absl::GetFlag(FLAGS_separate_optimizers)) config.ppo.separate_optimizers = *separate;
+  config.ppo.value_heads = absl::GetFlag(FLAGS_value_heads);
+  config.edti = absl::GetFlag(FLAGS_edti);
+  if (config.edti) {
+    if (config.ppo.value_heads == 1) {
+      return absl::InvalidArgumentError("--value_heads 1 cannot be used with --edti (it needs 3)");
+    }
+    config.ppo.value_heads = 3;
+  }
+  config.edti_coefficients.tv = static_cast<float>(absl::GetFlag(FLAGS_edti_tv));
+  config.edti_coefficients.tv_ext = static_cast<float>(absl::GetFlag(FLAGS_edti_tv_ext));
+  config.edti_coefficients.tv_int = static_cast<float>(absl::GetFlag(FLAGS_edti_tv_int));
+  config.edti_coefficients.partner = static_cast<float>(absl::GetFlag(FLAGS_edti_partner));
+  config.edti_coefficients.partner_ext = static_cast<float>(absl::GetFlag(FLAGS_edti_partner_ext));
+  config.edti_coefficients.partner_int = static_cast<float>(absl::GetFlag(FLAGS_edti_partner_int));
+  config.ppo.hidden_gain = absl::GetFlag(FLAGS_hidden_gain);
+  config.ppo.value_clip = absl::GetFlag(FLAGS_value_clip);
+  config.ppo.huber_delta = absl::GetFlag(FLAGS_huber_delta);
+  absl::StatusOr<learner::PpoObjective> objective = learner::ParsePpoObjective(absl::GetFlag(FLAGS_objective));
+  if (!objective.ok()) return absl::InvalidArgumentError(absl::StrCat("--objective: ", objective.status().message()));
+  config.ppo.objective = *objective;
+  absl::StatusOr<learner::CriticInput> critic_input = learner::ParseCriticInput(absl::GetFlag(FLAGS_critic_input));
+  if (!critic_input.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("--critic_input: ", critic_input.status().message()));
+  }
+  config.critic_input = *critic_input;
+  absl::StatusOr<learner::TimeLimit> time_limit = learner::ParseTimeLimit(absl::GetFlag(FLAGS_time_limit));
+  if (!time_limit.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("--time_limit: ", time_limit.status().message()));
+  }
+  config.time_limit = *time_limit;
+  if (const auto synchronous = absl::GetFlag(FLAGS_synchronous)) config.synchronous = *synchronous;
+  config.actors = absl::GetFlag(FLAGS_actors);
+  config.ppo.seed = absl::GetFlag(FLAGS_seed);
+  config.ppo.threads = absl::GetFlag(FLAGS_threads);
+  config.ppo.concurrent_critic = absl::GetFlag(FLAGS_concurrent_critic);
+  config.gamma = absl::GetFlag(FLAGS_gamma);
+  config.gamma_int = absl::GetFlag(FLAGS_gamma_int);
+  config.lambda = absl::GetFlag(FLAGS_lambda);
+  config.intrinsic_coef = absl::GetFlag(FLAGS_intrinsic_coef);
+  if (const auto batch_steps = absl::GetFlag(FLAGS_batch_steps)) config.batch_steps = *batch_steps;
+  config.max_policy_lag = absl::GetFlag(FLAGS_max_policy_lag);
+  config.queue_capacity = absl::GetFlag(FLAGS_queue_capacity);
+  config.budget_steps = absl::GetFlag(FLAGS_steps);
+  config.run_dir = absl::GetFlag(FLAGS_run_dir);
+  config.trained_log = absl::GetFlag(FLAGS_trained_log);
+  config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
+  config.checkpoint_seconds = absl::GetFlag(FLAGS_checkpoint_seconds);
+  const int64_t max_batch_mb = absl::GetFlag(FLAGS_max_batch_mb);
+  if (max_batch_mb < 1 || max_batch_mb > (int64_t{1} << 30)) {
+    return absl::InvalidArgumentError("--max_batch_mb must be in [1, 2^30]");
+  }
+  config.max_batch_bytes = max_batch_mb * 1000 * 1000;
+  return config;
+}
+
+// The training configuration as flag name: value (what --print_config
+// prints and --list gives per scenario): passed back as flags, it resolves
+// to the same configuration.
+std::string ConfigJson(const imca::learner::LearnerConfig& c) {
+  using namespace imca;
+  JsonObject json;
+  json.Add("algo", learner::AlgoName(c.algo))
+      .Add("steps", c.budget_steps)
+      .Add("batch_steps", c.batch_steps)
+      .Add("synchronous", c.synchronous)
+      .Add("actors", c.actors)
+      .Add("max_policy_lag", c.max_policy_lag)
+      .Add("queue_capacity", c.queue_capacity)
+      .Add("max_batch_mb", c.max_batch_bytes / 1000000)
+      .Add("seed", c.ppo.seed)
+      .Add("threads", c.ppo.threads)
+      .Add("hidden", c.ppo.hidden)
+      .AddExact("lr", c.ppo.learning_rate)
+      .Add("separate_optimizers", c.ppo.separate_optimizers)
+      .Add("epochs", c.ppo.epochs)
+      .Add("minibatches", c.ppo.minibatches)
+      .AddExact("entropy_coef", c.ppo.entropy_coef)
+      .AddExact("clip", c.ppo.clip)
+      .AddExact("value_coef", c.ppo.value_coef)
+      .AddExact("max_grad_norm", c.ppo.max_grad_norm)
+      .Add("objective", learner::PpoObjectiveName(c.ppo.objective))
+      .Add("layer_norm", c.ppo.layer_norm)
+      .Add("value_heads", c.ppo.value_heads)
+      .AddExact("hidden_gain", c.ppo.hidden_gain)
+      .AddExact("value_clip", c.ppo.value_clip)
+      .AddExact("huber_delta", c.ppo.huber_delta)
+      .Add("concurrent_critic", c.ppo.concurrent_critic)
+      .Add("critic_input", learner::CriticInputName(c.critic_input))
+      .Add("time_limit", learner::TimeLimitName(c.time_limit))
+      .AddExact("gamma", c.gamma)
+      .AddExact("gamma_int", c.gamma_int)
+      .AddExact("lambda", c.lambda)
+      .AddExact("intrinsic_coef", c.intrinsic_coef)
+      .Add("edti", c.edti)
+      .AddExact("edti_tv", c.edti_coefficients.tv)
+      .AddExact("edti_tv_ext", c.edti_coefficients.tv_ext)
+      .AddExact("edti_tv_int", c.edti_coefficients.tv_int)
+      .AddExact("edti_partner", c.edti_coefficients.partner)
+      .AddExact("edti_partner_ext", c.edti_coefficients.partner_ext)
+      .AddExact("edti_partner_int", c.edti_coefficients.partner_int)
+      .Add("maddpg_hidden", c.maddpg.hidden)
+      .AddExact("maddpg_actor_lr", c.maddpg.actor_lr)
+      .AddExact("maddpg_critic_lr", c.maddpg.critic_lr)
+      .AddExact("maddpg_tau", c.maddpg.tau)
+      .AddExact("maddpg_max_grad_norm", c.maddpg.max_grad_norm)
+      .AddExact("maddpg_policy_reg", c.maddpg.policy_reg)
+      .Add("maddpg_batch", c.maddpg.batch_size)
+      .Add("maddpg_buffer", c.maddpg.buffer_transitions)
+      .Add("maddpg_learning_starts", c.maddpg.learning_starts)
+      .AddExact("updates_per_step", c.maddpg.updates_per_step)
+      .Add("maddpg_share", c.maddpg.share_parameters)
+      .Add("checkpoint_every", c.checkpoint_every)
+      .AddExact("checkpoint_seconds", c.checkpoint_seconds);
+  return json.Text();
+}
+
+// Each algorithm's defaults per scenario (DefaultLearnerConfig).
+std::string DefaultsJson() {
+  using namespace imca;
+  JsonObject algos;
+  for (const std::string& name : learner::AlgoNames()) {
+    JsonObject scenarios;
+    for (const std::string& scenario : env::ScenarioNames()) {
+      scenarios.Raw(scenario, ConfigJson(learner::DefaultLearnerConfig(scenario, *learner::ParseAlgo(name))));
+    }
+    algos.Raw(name, scenarios.Text());
+  }
+  return algos.Text();
 }
 
 // --list: one JSON object.
@@ -146,6 +320,7 @@ std::string ListJson() {
              .Add("program", "learner")
              .Add("scenarios", env::ScenarioNames())
              .Add("algos", learner::AlgoNames())
+             .Add("default_algo", learner::AlgoName(kDefaults.algo))
              .Add("objectives", learner::PpoObjectiveNames())
              .Add("critic_inputs", learner::CriticInputNames())
              .Add("time_limits", learner::TimeLimitNames())
@@ -153,6 +328,8 @@ std::string ListJson() {
              .Add("max_actor_ids", kDefaults.max_actor_ids)
              .Add("max_unroll_transitions", kMaxTransitions)
              .Add("exit_refused", kExitRefused)
+             .Add("exit_misconfigured", kExitMisconfigured)
+             .Raw("learner_defaults", DefaultsJson())
              .Raw("metrics_columns", absl::StrCat("[", columns, "]"))
              .Text() +
          "\n";
@@ -176,78 +353,19 @@ int main(int argc, char** argv) {
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
 
-  learner::LearnerConfig config;
-  absl::StatusOr<learner::Algo> algo = learner::ParseAlgo(absl::GetFlag(FLAGS_algo));
-  if (!algo.ok()) return Fail(absl::StrCat("--algo: ", algo.status().message()));
-  config.algo = *algo;
-  config.maddpg.hidden = absl::GetFlag(FLAGS_maddpg_hidden);
-  config.maddpg.actor_lr = absl::GetFlag(FLAGS_maddpg_actor_lr);
-  config.maddpg.critic_lr = absl::GetFlag(FLAGS_maddpg_critic_lr);
-  config.maddpg.tau = absl::GetFlag(FLAGS_maddpg_tau);
-  config.maddpg.max_grad_norm = absl::GetFlag(FLAGS_maddpg_max_grad_norm);
-  config.maddpg.policy_reg = absl::GetFlag(FLAGS_maddpg_policy_reg);
-  config.maddpg.batch_size = absl::GetFlag(FLAGS_maddpg_batch);
-  config.maddpg.buffer_transitions = absl::GetFlag(FLAGS_maddpg_buffer);
-  config.maddpg.learning_starts = absl::GetFlag(FLAGS_maddpg_learning_starts);
-  config.maddpg.updates_per_step = absl::GetFlag(FLAGS_updates_per_step);
-  config.maddpg.share_parameters = absl::GetFlag(FLAGS_maddpg_share);
-  config.ppo.hidden = absl::GetFlag(FLAGS_hidden);
-  config.ppo.learning_rate = absl::GetFlag(FLAGS_lr);
-  config.ppo.epochs = absl::GetFlag(FLAGS_epochs);
-  config.ppo.minibatches = absl::GetFlag(FLAGS_minibatches);
-  config.ppo.entropy_coef = absl::GetFlag(FLAGS_entropy_coef);
-  config.ppo.clip = absl::GetFlag(FLAGS_clip);
-  config.ppo.value_coef = absl::GetFlag(FLAGS_value_coef);
-  config.ppo.max_grad_norm = absl::GetFlag(FLAGS_max_grad_norm);
-  config.ppo.layer_norm = absl::GetFlag(FLAGS_layer_norm);
-  config.ppo.separate_optimizers = absl::GetFlag(FLAGS_separate_optimizers);
-  config.ppo.value_heads = absl::GetFlag(FLAGS_value_heads);
-  config.edti = absl::GetFlag(FLAGS_edti);
-  if (config.edti) {
-    if (config.ppo.value_heads == 1) return Fail("--value_heads 1 cannot be used with --edti (it needs 3)");
-    config.ppo.value_heads = 3;
+  absl::StatusOr<learner::LearnerConfig> resolved = ConfigFromFlags((*scenario)->name());
+  if (!resolved.ok()) return Fail(std::string(resolved.status().message()));
+  learner::LearnerConfig config = *std::move(resolved);
+  if (absl::GetFlag(FLAGS_print_config)) {
+    // Validated as a start would be, without a run folder to create.
+    learner::LearnerConfig check = config;
+    check.run_dir.clear();
+    check.trained_log.clear();
+    auto checked = learner::Learner::Create(scenario->get(), check);
+    if (!checked.ok()) return Fail(std::string(checked.status().message()));
+    std::printf("%s\n", ConfigJson(config).c_str());
+    return 0;
   }
-  config.edti_coefficients.tv = static_cast<float>(absl::GetFlag(FLAGS_edti_tv));
-  config.edti_coefficients.tv_ext = static_cast<float>(absl::GetFlag(FLAGS_edti_tv_ext));
-  config.edti_coefficients.tv_int = static_cast<float>(absl::GetFlag(FLAGS_edti_tv_int));
-  config.edti_coefficients.partner = static_cast<float>(absl::GetFlag(FLAGS_edti_partner));
-  config.edti_coefficients.partner_ext = static_cast<float>(absl::GetFlag(FLAGS_edti_partner_ext));
-  config.edti_coefficients.partner_int = static_cast<float>(absl::GetFlag(FLAGS_edti_partner_int));
-  config.ppo.hidden_gain = absl::GetFlag(FLAGS_hidden_gain);
-  config.ppo.value_clip = absl::GetFlag(FLAGS_value_clip);
-  config.ppo.huber_delta = absl::GetFlag(FLAGS_huber_delta);
-  absl::StatusOr<learner::PpoObjective> objective = learner::ParsePpoObjective(absl::GetFlag(FLAGS_objective));
-  if (!objective.ok()) return Fail(absl::StrCat("--objective: ", objective.status().message()));
-  config.ppo.objective = *objective;
-  absl::StatusOr<learner::CriticInput> critic_input = learner::ParseCriticInput(absl::GetFlag(FLAGS_critic_input));
-  if (!critic_input.ok()) return Fail(absl::StrCat("--critic_input: ", critic_input.status().message()));
-  config.critic_input = *critic_input;
-  absl::StatusOr<learner::TimeLimit> time_limit = learner::ParseTimeLimit(absl::GetFlag(FLAGS_time_limit));
-  if (!time_limit.ok()) return Fail(absl::StrCat("--time_limit: ", time_limit.status().message()));
-  config.time_limit = *time_limit;
-  config.synchronous = absl::GetFlag(FLAGS_synchronous);
-  config.ppo.seed = absl::GetFlag(FLAGS_seed);
-  config.ppo.threads = absl::GetFlag(FLAGS_threads);
-  config.ppo.concurrent_critic = absl::GetFlag(FLAGS_concurrent_critic);
-  config.gamma = absl::GetFlag(FLAGS_gamma);
-  config.gamma_int = absl::GetFlag(FLAGS_gamma_int);
-  config.lambda = absl::GetFlag(FLAGS_lambda);
-  config.intrinsic_coef = absl::GetFlag(FLAGS_intrinsic_coef);
-  config.batch_steps = absl::GetFlag(FLAGS_batch_steps);
-  config.max_policy_lag = absl::GetFlag(FLAGS_max_policy_lag);
-  config.queue_capacity = absl::GetFlag(FLAGS_queue_capacity);
-  config.budget_steps = absl::GetFlag(FLAGS_steps);
-  config.run_dir = absl::GetFlag(FLAGS_run_dir);
-  config.trained_log = absl::GetFlag(FLAGS_trained_log);
-  config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
-  config.checkpoint_seconds = absl::GetFlag(FLAGS_checkpoint_seconds);
-  if (config.checkpoint_every < 0 || !(config.checkpoint_seconds >= 0)) {
-    return Fail("--checkpoint_every and --checkpoint_seconds must be >= 0");
-  }
-  if (absl::GetFlag(FLAGS_max_batch_mb) < 1 || absl::GetFlag(FLAGS_max_batch_mb) > (int64_t{1} << 30)) {
-    return Fail("--max_batch_mb must be in [1, 2^30]");
-  }
-  config.max_batch_bytes = absl::GetFlag(FLAGS_max_batch_mb) * 1000 * 1000;
   absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
   if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
   const int max_streams = absl::GetFlag(FLAGS_max_streams);

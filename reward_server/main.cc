@@ -1,6 +1,7 @@
 // The reward server: wires flags to a Scorer and serves RewardService.
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <fstream>
 #include <thread>
 
@@ -20,21 +21,33 @@
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
-ABSL_FLAG(std::string, reward, "count", "reward kind: count|rnd|sf|eiti|edti (--list)");
-ABSL_FLAG(double, eta, 10.0, "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)");
-ABSL_FLAG(double, beta_t, 10.0, "eiti: coefficient of the summed influence c_{i->j}");
-ABSL_FLAG(bool, influence_log, false,
+ABSL_FLAG(std::string, reward, imca::reward::RewardKinds().front(), "reward kind: count|rnd|sf|eiti|edti (--list)");
+namespace {
+// Every default's one definition (with the reward kind's, DefaultScorerConfig).
+const imca::reward::ScorerConfig kScorer;
+const imca::reward::RewardKindConfig kKinds;
+const imca::reward::ServiceLimits kLimits;
+}  // namespace
+
+ABSL_FLAG(double, eta, kKinds.influence.eta,
+          "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)");
+ABSL_FLAG(double, beta_t, kKinds.influence.beta_t, "eiti: coefficient of the summed influence c_{i->j}");
+ABSL_FLAG(bool, influence_log, kKinds.influence.log_form,
           "eiti, edti: influence as the paper's log ratio instead of the released code's 1 - 1/x");
-ABSL_FLAG(double, sf_gamma, 0.95, "sf: successor-feature discount");
-ABSL_FLAG(double, sf_lr, 1e-3, "sf: Adam learning rate of psi");
-ABSL_FLAG(double, rnd_lr, 1e-3, "rnd: Adam learning rate of the predictor");
-ABSL_FLAG(double, rnd_update_proportion, 1.0, "rnd: share of each request's transitions the predictor trains on");
-ABSL_FLAG(int, threads, 1, "LibTorch intra-op threads (rnd, sf)");
-ABSL_FLAG(std::string, credit, "imca", "credit mode: none|independent|shared|imca");
-ABSL_FLAG(std::string, permutation, "off", "permutation mode: off|random|canonical");
-ABSL_FLAG(double, beta, 1.0, "coefficient of the global intrinsic reward");
-ABSL_FLAG(double, temperature, 1.0, "softmax temperature tau of the credit shares");
-ABSL_FLAG(uint64_t, seed, 1, "seed of the random permutation mode");
+ABSL_FLAG(double, sf_gamma, kKinds.sf.gamma, "sf: successor-feature discount");
+ABSL_FLAG(double, sf_lr, kKinds.sf.learning_rate, "sf: Adam learning rate of psi");
+ABSL_FLAG(double, rnd_lr, kKinds.rnd.learning_rate, "rnd: Adam learning rate of the predictor");
+ABSL_FLAG(double, rnd_update_proportion, kKinds.rnd.update_proportion,
+          "rnd: share of each request's transitions the predictor trains on");
+ABSL_FLAG(int, threads, kKinds.rnd.threads, "LibTorch intra-op threads (rnd, sf)");
+ABSL_FLAG(std::optional<std::string>, credit, std::nullopt,
+          "credit mode: none|independent|shared|imca (default: the reward kind's; --list)");
+ABSL_FLAG(std::string, permutation, imca::reward::PermutationName(kScorer.permutation),
+          "permutation mode: off|random|canonical");
+ABSL_FLAG(std::optional<double>, beta, std::nullopt,
+          "coefficient of the global intrinsic reward (default: the reward kind's; --list)");
+ABSL_FLAG(double, temperature, kScorer.temperature, "softmax temperature tau of the credit shares");
+ABSL_FLAG(uint64_t, seed, kScorer.seed, "seed of the random permutation mode");
 ABSL_FLAG(std::string, snapshot, "",
           "snapshot file: restored at start (count kinds: with the journal of every increment since, "
           "<snapshot>.journal-*), written periodically and at shutdown");
@@ -44,13 +57,16 @@ ABSL_FLAG(int, snapshot_every, 30,
 ABSL_FLAG(bool, journal_fsync, false,
           "count kinds: fdatasync the journal before each Score answer (survives a machine crash, not only a "
           "killed process; docs/reliability.md)");
-ABSL_FLAG(int, max_inflight, imca::reward::ServiceLimits{}.max_inflight,
+ABSL_FLAG(int, max_inflight, kLimits.max_inflight,
           "Score calls served at once; more end with RESOURCE_EXHAUSTED (the actor retries)");
-ABSL_FLAG(int, max_inflight_per_actor, imca::reward::ServiceLimits{}.max_inflight_per_actor,
+ABSL_FLAG(int, max_inflight_per_actor, kLimits.max_inflight_per_actor,
           "Score calls of one actor id served at once, so that one flooding client cannot starve the rest");
 ABSL_FLAG(bool, list, false,
           "print this binary's choices (scenarios, reward kinds with the credit modes each serves, permutation "
           "modes) as JSON and exit: what the Python tools ask instead of copying them");
+ABSL_FLAG(bool, print_config, false,
+          "resolve the configuration (defaults, the reward kind's, the flags given), validate it as a start "
+          "would, print it as JSON (flag name: value) and exit: 0, or 2 with the error");
 ABSL_FLAG(std::string, status_file, "",
           "if set, write a one-line JSON progress record here every second (for a supervisor)");
 
@@ -61,12 +77,38 @@ int Fail(const std::string& message) {
   return 2;
 }
 
+// The training configuration as flag name: value (--print_config, and per
+// reward kind in --list); passed back as flags it resolves the same.
+std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig& c,
+                       const imca::reward::RewardKindConfig& kinds) {
+  using namespace imca;
+  return JsonObject()
+      .Add("reward", kind)
+      .Add("credit", reward::CreditName(c.credit))
+      .Add("permutation", reward::PermutationName(c.permutation))
+      .AddExact("beta", c.beta)
+      .AddExact("temperature", c.temperature)
+      .Add("seed", c.seed)
+      .AddExact("eta", kinds.influence.eta)
+      .AddExact("beta_t", kinds.influence.beta_t)
+      .Add("influence_log", kinds.influence.log_form)
+      .AddExact("sf_gamma", kinds.sf.gamma)
+      .AddExact("sf_lr", kinds.sf.learning_rate)
+      .AddExact("rnd_lr", kinds.rnd.learning_rate)
+      .AddExact("rnd_update_proportion", kinds.rnd.update_proportion)
+      .Add("threads", kinds.rnd.threads)
+      .Add("snapshot_every", absl::GetFlag(FLAGS_snapshot_every))
+      .Add("journal_fsync", absl::GetFlag(FLAGS_journal_fsync))
+      .Text();
+}
+
 // --list: one JSON object. Each reward kind is built on `scenario` to ask
 // which credit modes it serves; a kind that cannot be built is an error.
 int List(const imca::env::Scenario& scenario) {
   using namespace imca;
-  JsonObject rewards;
+  JsonObject rewards, defaults;
   for (const std::string& kind : reward::RewardKinds()) {
+    defaults.Raw(kind, ConfigJson(kind, reward::DefaultScorerConfig(kind), kKinds));
     auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{}, {});
     if (!novelty.ok()) return Fail(absl::StrCat("--list: reward kind ", kind, ": ", novelty.status().message()));
     std::vector<std::string> credits;
@@ -80,8 +122,10 @@ int List(const imca::env::Scenario& scenario) {
                           .Add("program", "reward_server")
                           .Add("scenarios", env::ScenarioNames())
                           .Raw("rewards", rewards.Text())
+                          .Add("default_reward", reward::RewardKinds().front())
                           .Add("credits", reward::CreditNames())
                           .Add("permutations", reward::PermutationNames())
+                          .Raw("reward_defaults", defaults.Text())
                           .Text()
                           .c_str());
   return 0;
@@ -100,19 +144,19 @@ int main(int argc, char** argv) {
   absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
   if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
 
-  reward::ScorerConfig config;
-  auto credit = reward::ParseCredit(absl::GetFlag(FLAGS_credit));
-  if (!credit.ok()) return Fail(absl::StrCat("--credit: ", credit.status().message()));
+  const std::string kind = absl::GetFlag(FLAGS_reward);
+  reward::ScorerConfig config = reward::DefaultScorerConfig(kind);
+  if (const auto credit_name = absl::GetFlag(FLAGS_credit)) {
+    auto credit = reward::ParseCredit(*credit_name);
+    if (!credit.ok()) return Fail(absl::StrCat("--credit: ", credit.status().message()));
+    config.credit = *credit;
+  }
   auto permutation = reward::ParsePermutation(absl::GetFlag(FLAGS_permutation));
   if (!permutation.ok()) return Fail(absl::StrCat("--permutation: ", permutation.status().message()));
-  config.credit = *credit;
   config.permutation = *permutation;
-  config.beta = absl::GetFlag(FLAGS_beta);
+  if (const auto beta = absl::GetFlag(FLAGS_beta)) config.beta = *beta;
   config.temperature = absl::GetFlag(FLAGS_temperature);
   config.seed = absl::GetFlag(FLAGS_seed);
-  if (!(config.beta >= 0)) return Fail("--beta must be >= 0");
-  if (!(config.temperature > 0)) return Fail("--temperature must be > 0");
-  const std::string kind = absl::GetFlag(FLAGS_reward);
   reward::RewardKindConfig kinds;
   kinds.rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
   kinds.rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
@@ -125,10 +169,14 @@ int main(int argc, char** argv) {
   kinds.influence.log_form = absl::GetFlag(FLAGS_influence_log);
   auto made = reward::MakeScorer(kind, **scenario, config, kinds);
   if (!made.ok()) return Fail(absl::StrCat("--reward ", kind, ": ", made.status().message()));
+  if (absl::GetFlag(FLAGS_snapshot_every) < 0) return Fail("--snapshot_every must be >= 0");
+  if (absl::GetFlag(FLAGS_print_config)) {
+    std::printf("%s\n", ConfigJson(kind, config, kinds).c_str());
+    return 0;
+  }
   std::unique_ptr<reward::Scorer> scorer = *std::move(made);
 
   const std::string snapshot = absl::GetFlag(FLAGS_snapshot);
-  if (absl::GetFlag(FLAGS_snapshot_every) < 0) return Fail("--snapshot_every must be >= 0");
   if (!snapshot.empty()) {
     const bool resumed = std::ifstream(snapshot).good();
     if (absl::Status restored = scorer->Restore(snapshot, absl::GetFlag(FLAGS_journal_fsync)); !restored.ok()) {
@@ -159,7 +207,7 @@ int main(int argc, char** argv) {
     std::ofstream(port_file) << port << "\n";
   }
   std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d (%s)\n",
-               std::string((*scenario)->name()).c_str(), kind.c_str(), absl::GetFlag(FLAGS_credit).c_str(), port,
+               std::string((*scenario)->name()).c_str(), kind.c_str(), reward::CreditName(config.credit).c_str(), port,
                TransportSummary(server_options->transport, /*server=*/true).c_str());
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));

@@ -8,6 +8,21 @@ namespace imca::reward {
 
 std::vector<std::string> RewardKinds() { return {"count", "rnd", "sf", "eiti", "edti"}; }
 
+ScorerConfig DefaultScorerConfig(const std::string& kind) {
+  ScorerConfig config;
+  if (kind == "count" || kind == "rnd" || kind == "sf") {
+    // The global bonuses: half the novelty, split by IMCA (the scale of every
+    // row of docs/results.md).
+    config.credit = Credit::kImca;
+    config.beta = 0.5;
+  } else if (kind == "eiti" || kind == "edti") {
+    // Per-agent by construction (BASELINES.md 1): eta and beta_t scale them.
+    config.credit = Credit::kIndependent;
+    config.beta = 1.0;
+  }
+  return config;
+}
+
 absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, const env::Scenario& scenario,
                                                      const ScorerConfig& config, const RewardKindConfig& kinds) {
   if (kind == "count") return std::make_unique<CountNovelty>(scenario, config);
@@ -37,6 +52,8 @@ absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, co
 
 absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind, const env::Scenario& scenario,
                                                          const ScorerConfig& config, const RewardKindConfig& kinds) {
+  if (!(config.beta >= 0)) return absl::InvalidArgumentError("beta must be >= 0");
+  if (!(config.temperature > 0)) return absl::InvalidArgumentError("temperature must be > 0");
   auto novelty = MakeNovelty(kind, scenario, config, kinds);
   if (!novelty.ok()) return novelty.status();
   if (config.credit != Credit::kNone && !(*novelty)->Supports(config.credit)) {
@@ -45,8 +62,8 @@ absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind
       const Credit credit = *ParseCredit(name);
       if (credit == Credit::kNone || (*novelty)->Supports(credit)) served.push_back(name);
     }
-    return absl::InvalidArgumentError(absl::StrCat("reward '", kind, "' does not support credit '",
-                                                   CreditName(config.credit), "' (it serves: ",
+    return absl::InvalidArgumentError(absl::StrCat("credit '", CreditName(config.credit),
+                                                   "' is not served by reward '", kind, "' (it serves: ",
                                                    absl::StrJoin(served, ", "), ")"));
   }
   return std::make_unique<CreditScorer>(*std::move(novelty), config, scenario.num_agents());

@@ -25,13 +25,21 @@ struct RewardKindConfig {
 // The reward kinds MakeScorer knows, in the order docs list them.
 std::vector<std::string> RewardKinds();
 
+// The scorer defaults of reward kind `kind`: ScorerConfig's, joined with the
+// kind's own (count, rnd, sf: credit imca, beta 0.5; eiti, edti: credit
+// independent and beta 1, their own coefficients setting the scale). An
+// unknown kind gets ScorerConfig's (MakeScorer then names the known ones).
+// The reward server's flags override them; --list prints them per kind.
+ScorerConfig DefaultScorerConfig(const std::string& kind);
+
 // The Novelty of reward kind `kind` for `scenario`. Errors: INVALID_ARGUMENT
 // for an unknown kind (naming the known ones) or bad kind settings.
 absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, const env::Scenario& scenario,
                                                      const ScorerConfig& config, const RewardKindConfig& kinds);
 
 // That novelty under the credit rule of config.credit. Errors: those of
-// MakeNovelty, and INVALID_ARGUMENT if the kind cannot serve the credit mode.
+// MakeNovelty, and INVALID_ARGUMENT if the kind cannot serve the credit mode
+// or beta < 0 or temperature <= 0 (naming the field).
 absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind, const env::Scenario& scenario,
                                                          const ScorerConfig& config,
                                                          const RewardKindConfig& kinds = {});

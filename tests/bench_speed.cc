@@ -21,6 +21,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "actor/actor.h"
 #include "common/env.h"
 #include "common/grpc_util.h"
 #include "common/rng.h"
@@ -158,15 +159,22 @@ struct LearnerShape {
   bool separate_optimizers;
   bool concurrent_critic;
 };
-// ./imca train's defaults on coop_nav (the bench's scenario), and those
-// before the learner ablation and the concurrent critic (docs/benchmarks.md,
-// "Sample efficiency against the reference MAPPO").
-constexpr LearnerShape kDefaultShape{"", 2048, 32, 32, true, true};
+// The defaults on coop_nav (the bench's scenario: DefaultLearnerConfig,
+// DefaultActorConfig), and those before the learner ablation and the
+// concurrent critic (docs/benchmarks.md, "Sample efficiency against the
+// reference MAPPO").
+LearnerShape DefaultShape() {
+  const learner::LearnerConfig learner = learner::DefaultLearnerConfig("coop_nav", learner::Algo::kMappo);
+  const actor::ActorConfig actor = actor::DefaultActorConfig("coop_nav");
+  return {"", learner.batch_steps, actor.unroll_length, actor.num_envs, learner.ppo.separate_optimizers,
+          learner.ppo.concurrent_critic};
+}
 constexpr LearnerShape kV1Shape{"_v1", 8192, 64, 32, false, false};
 
 double BenchLearner(const env::Scenario& scenario, int rounds, int threads, const LearnerShape& shape) {
   learner::LearnerConfig config;
   config.batch_steps = shape.batch_steps;
+  config.synchronous = false;  // Update throughput: every pushed unroll is trained.
   config.run_dir = "/tmp/imca_bench_speed_learner_" + std::to_string(getpid());
   config.checkpoint_every = 0;
   config.ppo.threads = threads;
@@ -216,7 +224,7 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
   std::printf("score_transitions_per_sec %.0f\n", BenchScore(**scenario, rounds));
   std::fflush(stdout);
-  for (const LearnerShape& shape : {kDefaultShape, kV1Shape}) {
+  for (const LearnerShape& shape : {DefaultShape(), kV1Shape}) {
     for (int threads : {1, 2}) {
       std::printf("learner%s_steps_per_sec_%dthread%s %.0f\n", shape.name, threads, threads > 1 ? "s" : "",
                   BenchLearner(**scenario, rounds, threads, shape));

@@ -204,7 +204,7 @@ TEST(IntegrationTest, SynchronousActorsActWithThePolicyTheLearnerTrains) {
   auto reward_server = StartRewardServer(dir, "imca", &reward_port);
   ASSERT_GT(reward_port, 0);
   int learner_port = 0;
-  auto learner = StartLearner(dir, {"--run_dir=" + dir + "/run", "--steps=8192", "--batch_steps=1024", "--synchronous"},
+  auto learner = StartLearner(dir, {"--run_dir=" + dir + "/run", "--steps=8192", "--batch_steps=1024", "--synchronous=true"},
                               &learner_port);
   ASSERT_GT(learner_port, 0);
   // 2 actors x 8 envs x 32 steps x 2 unrolls = 1024 steps: one batch per version.
@@ -262,7 +262,8 @@ TEST_P(ScenarioPipelineTest, TrainsToTheBudgetAndStops) {
   const int reward_port = WaitForPortFile(dir + "/reward.port", reward_server, std::chrono::seconds(30));
   ASSERT_GT(reward_port, 0) << reward_server.Log();
   Subprocess learner({kBin + "/learner", "--listen=127.0.0.1:0", "--port_file=" + dir + "/learner.port",
-                      "--scenario=" + scenario, "--run_dir=" + dir + "/run", "--steps=3072", "--batch_steps=1024"},
+                      "--scenario=" + scenario, "--run_dir=" + dir + "/run", "--steps=3072", "--batch_steps=1024",
+                      "--actors=1"},
                      dir + "/learner.log");
   ASSERT_TRUE(learner.Start());
   const int learner_port = WaitForPortFile(dir + "/learner.port", learner, std::chrono::seconds(60));

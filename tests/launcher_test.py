@@ -51,33 +51,34 @@ class LauncherErrorsTest(unittest.TestCase):
 
 
 class LauncherDefaultsTest(unittest.TestCase):
-    def test_defaults_are_the_ablation_winners(self):
+    def test_defaults_are_the_binaries_and_nothing_is_restated(self):
         args = launch.parse_args([])  # coop_nav.
         self.assertEqual((args.sync, args.batch_steps, args.unroll_length, args.separate_optimizers, args.lr),
                          (True, 2048, 32, True, 1e-3))
-        self.assertEqual(launch.sync_unrolls(args), 1)
-        flags = launch.learner_option_flags(args)
-        self.assertIn("--synchronous=true", flags)
-        self.assertIn("--separate_optimizers=true", flags)
+        # Nothing given, nothing passed: each binary resolves its own defaults.
+        for program in launch.PROGRAMS:
+            self.assertEqual(launch.program_flags(args, program), [], program)
         pp = launch.parse_args(["--scenario", "predator_prey"])
         self.assertEqual((pp.batch_steps, pp.unroll_length, pp.separate_optimizers, pp.lr), (1024, 16, False, 5e-4))
-        # A flag given wins over the scenario's default.
-        self.assertTrue(launch.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])
-                        .separate_optimizers)
+        self.assertEqual(launch.program_flags(pp, "actor"), ["--scenario=predator_prey"])
+        # A flag given wins over the scenario's default, and is passed on.
+        given = launch.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])
+        self.assertTrue(given.separate_optimizers)
+        self.assertIn("--separate_optimizers=true", launch.program_flags(given, "learner"))
         self.assertEqual(launch.parse_args(["--lr", "2e-4"]).lr, 2e-4)
         old = launch.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
                                  "--unroll-length", "64"])
-        self.assertEqual(launch.sync_unrolls(old), 0)
-        self.assertEqual(launch.learner_option_flags(old), ["--algo=mappo", "--separate_optimizers=false"])
+        self.assertEqual(launch.program_flags(old, "learner"),
+                         ["--batch_steps=8192", "--separate_optimizers=false", "--synchronous=false"])
+        self.assertEqual(launch.program_flags(old, "actor"), ["--unroll_length=64"])
 
     def test_maddpg_acts_asynchronously_and_keeps_old_unrolls(self):
         args = launch.parse_args(["--algo", "maddpg", "--scenario", "spread", "--updates-per-step", "0.02"])
         self.assertFalse(args.sync)
-        self.assertEqual(launch.sync_unrolls(args), 0)
-        flags = launch.learner_option_flags(args)
+        flags = launch.program_flags(args, "learner")
         self.assertIn("--algo=maddpg", flags)
         self.assertIn("--updates_per_step=0.02", flags)
-        self.assertNotIn("--synchronous=true", flags)
+        self.assertFalse(any(f.startswith("--synchronous") for f in flags))
         # Asked for, synchronous collection is kept.
         self.assertTrue(launch.parse_args(["--algo", "maddpg", "--sync", "true"]).sync)
         for bad, flag in [(["--algo", "ppo"], "--algo"),
@@ -86,6 +87,19 @@ class LauncherDefaultsTest(unittest.TestCase):
             self.assertEqual(r.returncode, 2, r.stderr)
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
             self.assertIn(flag, r.stderr)
+
+    def test_a_share_that_is_no_whole_number_of_unrolls_ends_the_run_at_once(self):
+        # 2048 / 2 actors = 1024 steps each, not a whole number of 24 x 32 unrolls.
+        with tempfile.TemporaryDirectory() as out:
+            r = run(["--out", os.path.join(out, "run"), "--envs-per-actor", "24", "--quiet"], timeout=120)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertIn("not a whole number", r.stderr)
+            self.assertIn("--envs", r.stderr)
+        # A batch that the actors cannot split is refused before anything starts.
+        r = run(["--actors", "3"])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("--actors", r.stderr)
 
     def test_eiti_runs_with_its_own_credit_and_scale(self):
         args = launch.parse_args(["--scenario", "pass", "--reward", "eiti"])
@@ -110,6 +124,9 @@ class LauncherDefaultsTest(unittest.TestCase):
                 json.dump({"batch_steps": 2048, "unroll_length": 16, "sync": True, "separate_optimizers": True}, f)
             args = launch.parse_args(["--resume", run_dir])
             self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (True, True, 2048))
+            # Passed on explicitly: it resumes as it ran, whatever the defaults are now.
+            self.assertIn("--batch_steps=2048", launch.program_flags(args, "learner"))
+            self.assertIn("--unroll_length=16", launch.program_flags(args, "actor"))
             # A folder from before --algo trained MAPPO, whatever the command line says.
             self.assertEqual(launch.parse_args(["--resume", run_dir, "--algo", "maddpg"]).algo, "mappo")
 

@@ -41,6 +41,7 @@ class RpcMetricsTest : public ::testing::Test {
     ASSERT_TRUE(scenario.ok()) << scenario.status();
     scenario_ = *std::move(scenario);
     learner::LearnerConfig config;
+    config.synchronous = false;
     config.ppo.hidden = 16;
     config.checkpoint_every = 0;
     config.checkpoint_seconds = 0;
@@ -150,6 +151,7 @@ TEST(RpcMetricsRefusedTest, AnOversizedRequestIsCountedAtTheClientOnly) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok());
   learner::LearnerConfig config;
+  config.synchronous = false;
   config.ppo.hidden = 16;
   auto learner = learner::Learner::Create(scenario->get(), config);
   ASSERT_TRUE(learner.ok());

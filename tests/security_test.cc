@@ -117,6 +117,7 @@ class SecurityTest : public ::testing::Test {
     learner::LearnerConfig config;
     config.max_actor_ids = max_actor_ids;
     config.batch_steps = 1 << 20;  // Never trains here: only queues.
+    config.synchronous = false;
     config.budget_steps = 1 << 22;
     config.checkpoint_every = 0;
     config.checkpoint_seconds = 0;

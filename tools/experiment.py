@@ -209,7 +209,8 @@ def train_argv(cell, out):
 
 
 def check_flags(cells):
-    """Every cell's flags must parse as ./imca train flags (one-line error otherwise)."""
+    """Every cell's flags must be ones ./imca train takes, with values the
+    binaries accept (one-line error otherwise)."""
     checked = set()
     for cell in cells:
         key = json.dumps(cell["flags"], sort_keys=True)
@@ -220,10 +221,13 @@ def check_flags(cells):
         captured = io.StringIO()
         try:
             with contextlib.redirect_stderr(captured):
-                launch.parse_args(argv)
+                # The binaries check the values (--print_config), as a start would.
+                launch.plan(launch.parse_args(argv))
         except SystemExit:
             why = captured.getvalue().strip().removeprefix("imca train: ")
             raise ExperimentError(f"flags {json.dumps(cell['flags'])}: {why}")
+        except launch.LaunchError as error:
+            raise ExperimentError(f"flags {json.dumps(cell['flags'])}: {error}")
 
 
 def finished(run_dir, cell):
@@ -232,7 +236,7 @@ def finished(run_dir, cell):
 
 # config.json keys that name where and how a run was launched, not what it trained.
 UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "map", "max_restarts", "stall_seconds",
-                       "checkpoint_seconds", "snapshot_every"}
+                       "checkpoint_seconds", "snapshot_every", "given", "resolved"}
 
 
 def settings_conflict(run_dir, cell):

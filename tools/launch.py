@@ -12,6 +12,7 @@ import datetime
 import functools
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -77,61 +78,115 @@ def boolean(text):
     raise argparse.ArgumentTypeError(f"must be true or false, got {text}")
 
 
-# Learner options passed on only when given, so that the learner binary's
-# default (learner/learner.h, learner/ppo_trainer.h) is the one definition:
-# (./imca train flag, learner flag, argparse keywords). docs/learner.md.
-LEARNER_OPTIONS = [
-    ("--objective", "objective", dict(choices=["behaviour", "decoupled"],
-                                      help="PPO clip against the behaviour policy or a recomputed proximal one")),
-    ("--layer-norm", "layer_norm", dict(type=boolean, metavar="BOOL", help="LayerNorm on input and hidden layers")),
-    ("--value-heads", "value_heads", dict(type=int, choices=[1, 2], help="2: extrinsic + intrinsic heads; 1: one")),
-    ("--critic-input", "critic_input", dict(choices=["state", "joint_obs"], help="centralised critic's input")),
-    ("--time-limit", "time_limit", dict(choices=["bootstrap", "terminal"], help="the step limit in the returns")),
-    ("--hidden-gain", "hidden_gain", dict(type=float, help="orthogonal init gain of hidden layers")),
-    ("--value-clip", "value_clip", dict(type=float, help="value clipping range (0: off)")),
-    ("--huber-delta", "huber_delta", dict(type=float, help="Huber value loss delta (0: MSE)")),
-    ("--value-coef", "value_coef", dict(type=float, help="value loss weight")),
-    ("--max-grad-norm", "max_grad_norm", dict(type=float, help="gradient-norm clip")),
-    ("--epochs", "epochs", dict(type=positive_int, help="PPO epochs per iteration")),
-    ("--minibatches", "minibatches", dict(type=positive_int, help="PPO minibatches per epoch")),
-    ("--max-policy-lag", "max_policy_lag", dict(type=int, help="mappo: drop unrolls older than this many versions")),
-    ("--learner-threads", "threads", dict(type=positive_int, help="LibTorch threads of each learner pass")),
-    ("--gamma", "gamma", dict(type=float, help="extrinsic discount (MADDPG: its only one)")),
-    ("--updates-per-step", "updates_per_step",
+# The ./imca train flags that set a binary's flag: (flag, {program: the
+# binary's flag}, argparse keywords). Each is passed on only when given (or
+# recorded by a run being resumed), so that the binaries' defaults, in C++
+# beside what they configure (and the scenario's and reward kind's
+# differences beside their specs), are the one definition: `<binary>
+# --list` prints them per scenario, and parse_args fills what was not given
+# from there, for the record and the progress line. docs/learner.md.
+SCENARIO = ("reward_server", "learner", "actor", "imca_env")  # The env tool renders the episode GIF.
+OPTIONS = [
+    ("--scenario", {p: "scenario" for p in SCENARIO}, dict(choices=lambda k: k["scenarios"])),
+    ("--num-agents", {p: "num_agents" for p in SCENARIO}, dict(type=int, help="agents (default: the scenario's)")),
+    ("--step-limit", {p: "step_limit" for p in SCENARIO}, dict(type=int, help="episode step limit (default: the scenario's)")),
+    ("--view-radius", {p: "view_radius" for p in SCENARIO}, dict(type=int, help="partial observation radius (0: full)")),
+    ("--door-timer", {p: "door_timer" for p in SCENARIO},
+     dict(type=int, help="door scenarios: EDTI's door-open interval doi (default: the scenario's; docs/scenarios.md)")),
+    ("--reward", {"reward_server": "reward"}, dict(choices=lambda k: list(k["rewards"]), help="global novelty kind")),
+    ("--credit", {"reward_server": "credit"}, dict(choices=lambda k: k["credits"],
+                                                   help="credit mode (default: imca; independent for eiti and edti)")),
+    ("--permutation", {"reward_server": "permutation"}, dict(choices=lambda k: k["permutations"])),
+    ("--beta", {"reward_server": "beta"}, dict(type=float, help="coefficient of the global bonus (default 0.5; 1 for eiti, edti)")),
+    ("--eta", {"reward_server": "eta"}, dict(type=float, help="eiti, edti: coefficient of the decentralised curiosity")),
+    ("--beta-t", {"reward_server": "beta_t"}, dict(type=float, help="eiti: coefficient of the summed influence")),
+    ("--temperature", {"reward_server": "temperature"}, dict(type=float, help="softmax temperature of the shares")),
+    ("--snapshot-every", {"reward_server": "snapshot_every"},
+     dict(type=int, help="reward server snapshot interval in s (count kinds also journal every increment)")),
+    ("--seed", {"reward_server": "seed", "learner": "seed"},
+     dict(type=int, help="seed of the run (actor i acts with seed * 1000 + i + 1)")),
+    ("--algo", {"learner": "algo"}, dict(choices=lambda k: k["algos"],
+                                         help="mappo (on-policy PPO) or maddpg (off-policy; docs/learner.md)")),
+    ("--steps", {"learner": "steps"}, dict(type=positive_int, help="budget in joint env steps")),
+    ("--actors", {"learner": "actors"}, dict(type=positive_int, help="actor processes")),
+    ("--batch-steps", {"learner": "batch_steps"}, dict(type=positive_int,
+                                                       help="joint env steps per PPO iteration (default: the scenario's)")),
+    ("--max-batch-mb", {"learner": "max_batch_mb"},
+     dict(type=positive_int, help="learner's cap on an iteration's feature memory (docs/learner.md)")),
+    ("--lr", {"learner": "lr"}, dict(type=float, help="Adam learning rate (default: the scenario's)")),
+    ("--entropy-coef", {"learner": "entropy_coef"}, dict(type=float, help="entropy bonus coefficient")),
+    ("--intrinsic-coef", {"learner": "intrinsic_coef"}, dict(type=float, help="weight of the intrinsic advantage")),
+    ("--separate-optimizers", {"learner": "separate_optimizers"},
+     dict(type=boolean, metavar="BOOL",
+          help="one Adam and grad clip each for actor and critic, false: one over both (default: the scenario's)")),
+    ("--sync", {"learner": "synchronous"},
+     dict(type=boolean, metavar="BOOL",
+          help="synchronous collection: every iteration trains on the policy it starts from, each actor acting "
+               "batch steps / actors of it (default: true for mappo, false for maddpg)")),
+    ("--checkpoint-seconds", {"learner": "checkpoint_seconds"},
+     dict(type=float, help="learner checkpoint interval: what a learner restart loses at most")),
+    ("--objective", {"learner": "objective"}, dict(choices=lambda k: k["objectives"],
+                                                   help="PPO clip against the behaviour policy or a recomputed proximal one")),
+    ("--layer-norm", {"learner": "layer_norm"}, dict(type=boolean, metavar="BOOL",
+                                                     help="LayerNorm on input and hidden layers")),
+    ("--value-heads", {"learner": "value_heads"}, dict(type=int, choices=[1, 2], help="2: extrinsic + intrinsic heads; 1: one")),
+    ("--critic-input", {"learner": "critic_input"}, dict(choices=lambda k: k["critic_inputs"], help="centralised critic's input")),
+    ("--time-limit", {"learner": "time_limit"}, dict(choices=lambda k: k["time_limits"], help="the step limit in the returns")),
+    ("--hidden-gain", {"learner": "hidden_gain"}, dict(type=float, help="orthogonal init gain of hidden layers")),
+    ("--value-clip", {"learner": "value_clip"}, dict(type=float, help="value clipping range (0: off)")),
+    ("--huber-delta", {"learner": "huber_delta"}, dict(type=float, help="Huber value loss delta (0: MSE)")),
+    ("--value-coef", {"learner": "value_coef"}, dict(type=float, help="value loss weight")),
+    ("--max-grad-norm", {"learner": "max_grad_norm"}, dict(type=float, help="gradient-norm clip")),
+    ("--epochs", {"learner": "epochs"}, dict(type=positive_int, help="PPO epochs per iteration")),
+    ("--minibatches", {"learner": "minibatches"}, dict(type=positive_int, help="PPO minibatches per epoch")),
+    ("--max-policy-lag", {"learner": "max_policy_lag"},
+     dict(type=int, help="mappo: drop unrolls older than this many versions")),
+    ("--learner-threads", {"learner": "threads"}, dict(type=positive_int,
+                                                       help="LibTorch threads of each learner pass")),
+    ("--gamma", {"learner": "gamma"}, dict(type=float, help="extrinsic discount (MADDPG: its only one)")),
+    ("--updates-per-step", {"learner": "updates_per_step"},
      dict(type=float, help="maddpg: gradient steps per joint env step; actors are slowed to it")),
-    ("--maddpg-share", "maddpg_share", dict(type=boolean, metavar="BOOL",
-                                            help="maddpg: one actor and critic for all agents (agent id input)")),
-    ("--maddpg-batch", "maddpg_batch", dict(type=positive_int, help="maddpg: transitions per gradient step")),
-    ("--maddpg-buffer", "maddpg_buffer", dict(type=positive_int, help="maddpg: replay capacity")),
-    ("--maddpg-learning-starts", "maddpg_learning_starts",
+    ("--maddpg-share", {"learner": "maddpg_share"}, dict(type=boolean, metavar="BOOL",
+                                                         help="maddpg: one actor and critic for all agents (agent id input)")),
+    ("--maddpg-batch", {"learner": "maddpg_batch"}, dict(type=positive_int,
+                                                         help="maddpg: transitions per gradient step")),
+    ("--maddpg-buffer", {"learner": "maddpg_buffer"}, dict(type=positive_int, help="maddpg: replay capacity")),
+    ("--maddpg-learning-starts", {"learner": "maddpg_learning_starts"},
      dict(type=positive_int, help="maddpg: replay transitions before the first update")),
-    ("--maddpg-actor-lr", "maddpg_actor_lr", dict(type=float, help="maddpg: the actors' Adam learning rate")),
-    ("--maddpg-critic-lr", "maddpg_critic_lr", dict(type=float, help="maddpg: the critics' Adam learning rate")),
-    ("--maddpg-tau", "maddpg_tau", dict(type=float, help="maddpg: soft target update rate")),
-    ("--concurrent-critic", "concurrent_critic", dict(type=boolean, metavar="BOOL",
-                                                      help="critic passes on a second learner thread")),
+    ("--maddpg-actor-lr", {"learner": "maddpg_actor_lr"}, dict(type=float, help="maddpg: the actors' Adam learning rate")),
+    ("--maddpg-critic-lr", {"learner": "maddpg_critic_lr"}, dict(type=float, help="maddpg: the critics' Adam learning rate")),
+    ("--maddpg-tau", {"learner": "maddpg_tau"}, dict(type=float, help="maddpg: soft target update rate")),
+    ("--concurrent-critic", {"learner": "concurrent_critic"}, dict(type=boolean, metavar="BOOL",
+                                                                   help="critic passes on a second learner thread")),
+    ("--envs-per-actor", {"actor": "envs"}, dict(type=positive_int, help="environments of each actor")),
+    ("--unroll-length", {"actor": "unroll_length"}, dict(type=positive_int,
+                                                         help="steps per unroll (default: the scenario's)")),
 ]
+
+
+def dest(flag):
+    return flag[2:].replace("-", "_")
 
 
 # ./imca train's defaults before the learner ablation (docs/benchmarks.md,
 # "Sample efficiency against the reference MAPPO"); a run folder that did not
 # record one of these settings ran with it.
 V1_DEFAULTS = {"sync": False, "batch_steps": 8192, "unroll_length": 64, "separate_optimizers": False, "lr": 5e-4}
-# The learner settings that differ by scenario, used where a flag is not
-# given (docs/benchmarks.md, "The new defaults"). coop_nav: two optimisers (one
-# Adam and grad clip each for actor and critic), 2048 env steps per iteration
-# and lr 1e-3 reach 90% in 0.43M (shared) / 0.40M (imca) env steps over 15
-# seeds, against 0.48M / 0.57M at the general settings. predator_prey + RND
-# loses seeds with either of those bolder steps (2 of 5 short with two
-# optimisers, 3 of 3 with lr 1e-3), so it and the scenarios not measured keep
-# the general settings.
-GENERAL_DEFAULTS = {"separate_optimizers": False, "batch_steps": 1024, "unroll_length": 16, "lr": 5e-4}
-SCENARIO_DEFAULTS = {"coop_nav": {"separate_optimizers": True, "batch_steps": 2048, "unroll_length": 32,
-                                  "lr": 1e-3}}
 
 
-def scenario_default(scenario, key):
-    return SCENARIO_DEFAULTS.get(scenario, {}).get(key, GENERAL_DEFAULTS[key])
+def resolved_defaults(args):
+    """{program: {binary flag: default}} for the scenario, algorithm and
+    reward kind in args (filled first): what `<program> --list` resolves."""
+    known = facts()
+    if args.scenario is None:
+        args.scenario = known["default_scenario"]
+    if args.algo is None:
+        args.algo = known["default_algo"]
+    if args.reward is None:
+        args.reward = known["default_reward"]
+    return {"reward_server": known["reward_defaults"][args.reward],
+            "learner": known["learner_defaults"][args.algo][args.scenario],
+            "actor": known["actor_defaults"][args.scenario]}
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -145,45 +200,12 @@ def parse_args(argv):
     p = OneLineParser(prog="imca train", description=__doc__,
                       formatter_class=argparse.RawDescriptionHelpFormatter)
     known = facts()
-    p.add_argument("--scenario", default="coop_nav", choices=known["scenarios"])
-    p.add_argument("--algo", default="mappo", choices=known["algos"],
-                   help="mappo (on-policy PPO) or maddpg (off-policy; docs/learner.md)")
-    p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
-    p.add_argument("--num-agents", type=int, default=0, help="agents (0: the scenario default)")
-    p.add_argument("--step-limit", type=int, default=0, help="episode step limit (0: the scenario default)")
-    p.add_argument("--view-radius", type=int, default=0, help="partial observation radius (0: full)")
-    p.add_argument("--door-timer", type=int, default=-1,
-                   help="door scenarios: EDTI's door-open interval doi (-1: the scenario default; docs/scenarios.md)")
-    p.add_argument("--reward", default="count", choices=list(known["rewards"]), help="global novelty kind")
-    p.add_argument("--credit", default=None, choices=known["credits"],
-                   help="credit mode (default imca; independent for eiti and edti)")
-    p.add_argument("--permutation", default="off", choices=known["permutations"])
-    p.add_argument("--beta", type=float, default=None, help="coefficient of the global bonus (default 0.5; 1 for eiti, edti)")
-    p.add_argument("--eta", type=float, default=10.0, help="eiti, edti: coefficient of the decentralised curiosity")
-    p.add_argument("--beta-t", type=float, default=10.0, help="eiti: coefficient of the summed influence")
-    p.add_argument("--temperature", type=float, default=1.0, help="softmax temperature of the shares")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--actors", type=positive_int, default=2)
-    p.add_argument("--envs-per-actor", type=positive_int, default=32)
-    p.add_argument("--unroll-length", type=positive_int, default=None,
-                   help="steps per unroll (default: 32 on coop_nav, 16 elsewhere)")
-    p.add_argument("--steps", type=positive_int, default=2_000_000, help="budget in joint env steps")
-    p.add_argument("--batch-steps", type=positive_int, default=None,
-                   help="joint env steps per PPO iteration (default: 2048 on coop_nav, 1024 elsewhere)")
-    p.add_argument("--max-batch-mb", type=positive_int, default=8192,
-                   help="learner's cap on an iteration's feature memory (docs/learner.md)")
-    p.add_argument("--lr", type=float, default=None, help="Adam learning rate (default: 1e-3 on coop_nav, 5e-4 elsewhere)")
-    p.add_argument("--entropy-coef", type=float, default=0.01)
-    p.add_argument("--intrinsic-coef", type=float, default=1.0)
-    for flag, _, keywords in LEARNER_OPTIONS:
+    for flag, _, keywords in OPTIONS:
+        keywords = dict(keywords)
+        if callable(keywords.get("choices")):
+            keywords["choices"] = keywords["choices"](known)
         p.add_argument(flag, default=None, **keywords)
-    p.add_argument("--separate-optimizers", type=boolean, default=None, metavar="BOOL",
-                   help="one Adam and grad clip each for actor and critic, false: one over both "
-                        "(default: true on coop_nav, false elsewhere; docs/learner.md)")
-    p.add_argument("--sync", type=boolean, default=None, metavar="BOOL",
-                   help="synchronous collection: every iteration trains on the policy it starts from; "
-                        "--batch-steps must be a multiple of actors x envs x unroll length "
-                        "(default: true for mappo, false for maddpg)")
+    p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
     p.add_argument("--reward-port", type=int, default=0, help="reward server port (0: a free one)")
     p.add_argument("--learner-port", type=int, default=0, help="learner port (0: a free one)")
@@ -197,15 +219,13 @@ def parse_args(argv):
                    help="restarts of each process before the run gives up (0: none; docs/reliability.md)")
     p.add_argument("--stall-seconds", type=float, default=60.0,
                    help="a process with no progress for this long is restarted")
-    p.add_argument("--checkpoint-seconds", type=float, default=30.0,
-                   help="learner checkpoint interval: what a learner restart loses at most")
-    p.add_argument("--snapshot-every", type=int, default=30,
-                   help="reward server snapshot interval in s (count kinds also journal every increment)")
     p.add_argument("--secure", action="store_true",
                    help="mutual TLS and a bearer token on every connection: a throwaway CA, certificates and "
                         "token are made in <run folder>/tls with openssl (docs/security.md)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     args = p.parse_args(argv)
+    # What the user gave (or the resumed run recorded): the flags passed on.
+    args.given = sorted(dest(flag) for flag, _, _ in OPTIONS if getattr(args, dest(flag)) is not None)
     if args.resume:
         config_path = os.path.join(args.resume, "config.json")
         if not os.path.isfile(config_path) or not os.path.isdir(os.path.join(args.resume, "checkpoints")):
@@ -218,39 +238,22 @@ def parse_args(argv):
             if saved.get(key) is None:
                 saved[key] = old
         saved.setdefault("algo", "mappo")  # Runs from before --algo trained MAPPO.
+        given = set(args.given)
         for key, value in saved.items():
-            if key not in ("steps", "out", "resume", "reward_port", "learner_port") and hasattr(args, key):
+            if key in ("steps", "out", "resume", "reward_port", "learner_port", "given", "resolved"):
+                continue
+            if hasattr(args, key) and value is not None:
                 setattr(args, key, value)
+                given.add(key)
+        # Every recorded setting is passed on: the run resumes as it ran,
+        # whatever the defaults are now.
+        args.given = sorted(k for k in given if k in {dest(f) for f, _, _ in OPTIONS})
         args.out = args.resume
-    for key in GENERAL_DEFAULTS:
-        if getattr(args, key) is None:
-            setattr(args, key, scenario_default(args.scenario, key))
-    if args.sync is None:
-        # Off-policy MADDPG learns from a replay of any age: its actors keep
-        # acting while it trains (the update ratio paces them).
-        args.sync = args.algo == "mappo"
-    if args.algo == "maddpg":
-        if args.reward == "edti":
-            p.error("argument --algo: edti's value of interaction is a MAPPO value head; use --algo mappo")
-    per_agent = per_agent_reward(args.reward)
-    if args.credit is None:
-        args.credit = "independent" if per_agent else "imca"
-    if args.credit not in known["rewards"][args.reward]:
-        p.error(f"argument --credit: reward {args.reward} gives each agent its own bonus; "
-                f"use --credit {' or '.join(known['rewards'][args.reward])}")
-    if args.beta is None:
-        args.beta = 1.0 if per_agent else 0.5
-    if args.reward == "edti" and args.value_heads == 1:
-        p.error("argument --value-heads: edti learns its value of interaction with a third head; drop the flag")
-    if args.eta < 0 or args.beta_t < 0:
-        p.error("argument --eta/--beta-t: must be >= 0")
-    if args.beta < 0:
-        p.error("argument --beta: must be >= 0")
-    for flag in ("num_agents", "step_limit", "view_radius"):
-        if getattr(args, flag) < 0:
-            p.error(f"argument --{flag.replace('_', '-')}: must be >= 0")
-    if not -1 <= args.door_timer <= known["max_door_timer"]:
-        p.error(f"argument --door-timer: must be in [0, {known['max_door_timer']}] (or -1: the scenario default)")
+    defaults = resolved_defaults(args)
+    for flag, programs, _ in OPTIONS:
+        if getattr(args, dest(flag)) is None:
+            program, name = next(iter(programs.items()))
+            setattr(args, dest(flag), defaults[program].get(name))
     if args.metrics_port and not 1 <= args.metrics_port <= 65535 - 1 - args.actors:
         p.error(f"argument --metrics-port: must be in [1, {65535 - 1 - args.actors}] "
                 f"(it takes N .. N+{1 + args.actors}), or 0 for no endpoints")
@@ -260,38 +263,44 @@ def parse_args(argv):
         # An actor waiting for a policy refreshes its status once per long
         # poll (up to 5 s); a shorter limit would restart healthy waiters.
         p.error("argument --stall-seconds: must be >= 10")
-    if args.checkpoint_seconds < 0 or args.snapshot_every < 0:
-        p.error("argument --checkpoint-seconds/--snapshot-every: must be >= 0")
-    if args.temperature <= 0:
-        p.error("argument --temperature: must be > 0")
     if args.map and not os.path.isfile(args.map):
         p.error(f"argument --map: no such file '{args.map}'")
-    if args.envs_per_actor * args.unroll_length > known["max_unroll_transitions"]:
-        p.error(f"--envs-per-actor * --unroll-length must be <= {known['max_unroll_transitions']}")
-    if args.sync:
-        per_round = args.actors * args.envs_per_actor * args.unroll_length
-        if args.batch_steps % per_round != 0:
-            p.error(f"argument --sync: --batch-steps {args.batch_steps} is not a multiple of --actors x "
-                    f"--envs-per-actor x --unroll-length = {per_round}")
     return args
 
 
-def learner_option_flags(args):
-    """The learner flags of the options the user gave (others keep the binary's default)."""
-    flags = [f"--algo={args.algo}"]
-    for flag, name, _ in LEARNER_OPTIONS:
-        value = getattr(args, flag[2:].replace("-", "_"))
-        if value is not None:
-            flags.append(f"--{name}={str(value).lower() if isinstance(value, bool) else value}")
-    flags.append(f"--separate_optimizers={str(args.separate_optimizers).lower()}")
-    if args.sync:
-        flags.append("--synchronous=true")
+def program_flags(args, program):
+    """The training flags ./imca train passes to `program`: those of the
+    options given (the rest are the binary's defaults), in OPTIONS order."""
+    flags = []
+    for flag, programs, _ in OPTIONS:
+        name = programs.get(program)
+        if name is None or dest(flag) not in args.given:
+            continue
+        value = getattr(args, dest(flag))
+        flags.append(f"--{name}={str(value).lower() if isinstance(value, bool) else value}")
+    if program == "learner" and args.reward == "edti":
+        flags.append("--edti=true")  # EDTI's value of interaction: the learner's half of --reward edti.
     return flags
 
 
-def sync_unrolls(args):
-    """Unrolls each actor acts per policy version in synchronous mode (0: async)."""
-    return args.batch_steps // (args.actors * args.envs_per_actor * args.unroll_length) if args.sync else 0
+def print_config(args, program, flags):
+    """`program --print_config` with `flags`: the configuration it resolves,
+    validated by the binary itself (the one place that checks values). A
+    refusal is a LaunchError naming the ./imca train flag."""
+    path = os.path.join(BIN, program)
+    out = subprocess.run([path, *flags, "--print_config"], capture_output=True, text=True, timeout=120)
+    if out.returncode != 0:
+        message = (out.stderr.strip().splitlines() or [f"exit {out.returncode}"])[-1]
+        # The given option the message names first (past its "program: --flag value:" context).
+        reason = re.sub(r"^\w+: (--\w+ \S+: )?", "", message)
+        named = []
+        for flag, programs, _ in OPTIONS:
+            name = programs.get(program)
+            found = re.search(rf"(?<![\w-]){re.escape(name)}(?!\w)", reason) if name else None
+            if found and dest(flag) in args.given:
+                named.append((found.start(), flag))
+        raise LaunchError(f"argument {min(named)[1]}: {message}" if named else message)
+    return json.loads(out.stdout)
 
 
 def _die_with_parent():
@@ -449,6 +458,9 @@ class Services:
                 # A server refused its credentials: the same ones would be
                 # refused again, so no restart.
                 raise LaunchError(f"{name} was refused by a server (exit {code}): {self.last_log_line(name)}")
+            if code == facts()["exit_misconfigured"]:
+                # Its configuration cannot work with its peers: neither can a restart's.
+                raise LaunchError(f"{name} cannot work with its peers (exit {code}): {self.last_log_line(name)}")
             reason = None
             if code is not None:
                 reason = f"exited with code {code}"
@@ -697,21 +709,29 @@ def write_prometheus_config(run_dir, ports, scrape_interval="5s"):
         f.write("\n".join(lines) + "\n")
 
 
+def plan(args):
+    """({program: the training flags it is started with}, the run's
+    config.json): the settings (flags given, the rest filled from the
+    binaries' defaults) and, under "resolved", what each binary resolves
+    from its flags. Each binary checks its configuration here, before
+    anything starts (LaunchError naming the flag)."""
+    map_flags = [f"--map={os.path.abspath(args.map)}"] if args.map else []
+    flags = {program: program_flags(args, program) + map_flags for program in SCENARIO}
+    config = {k: v for k, v in vars(args).items() if k not in ("quiet",)}
+    config["map"] = os.path.abspath(args.map or os.path.join(ROOT, "maps", args.scenario + ".txt"))
+    config["resolved"] = {program: print_config(args, program, flags[program]) for program in PROGRAMS}
+    return flags, config
+
+
 def run(args):
     run_dir = args.out or os.path.join("runs", datetime.datetime.now().strftime("%Y%m%d-%H%M%S"))
     run_dir = os.path.abspath(run_dir)
     if os.path.exists(os.path.join(run_dir, "metrics.csv")) and not args.resume:
         raise LaunchError(f"--out: '{run_dir}' already holds a run (use --resume to continue it)")
+    flags, config = plan(args)  # Nothing is made or started for a configuration the binaries refuse.
     os.makedirs(run_dir, exist_ok=True)
-    config = {k: v for k, v in vars(args).items() if k not in ("quiet",)}
-    if not args.map:
-        config["map"] = os.path.join(ROOT, "maps", args.scenario + ".txt")
-    config["map"] = os.path.abspath(config["map"])
     write_json_atomically(os.path.join(run_dir, "config.json"), config)
-
-    scenario_flags = [f"--scenario={args.scenario}", f"--map={config['map']}", f"--num_agents={args.num_agents}",
-                      f"--step_limit={args.step_limit}", f"--view_radius={args.view_radius}",
-                      f"--door_timer={args.door_timer}"]
+    scenario_flags = flags["imca_env"]
     server_tls, actor_tls = secure_flags(run_dir, args) if args.secure else ([], lambda i: [])
     ports = metrics_ports(args)
     metrics_flag = lambda name: [f"--metrics_listen=127.0.0.1:{ports[name]}"] if ports else []
@@ -732,29 +752,19 @@ def run(args):
         # reconnect there) and from its saved state.
         reward_port = []
         rs = services.start("reward_server", [
-            os.path.join(BIN, "reward_server"), f"--port_file={reward_port_file}", *scenario_flags,
-            f"--reward={args.reward}",
-            f"--credit={args.credit}", f"--permutation={args.permutation}", f"--beta={args.beta}",
-            f"--eta={args.eta}", f"--beta_t={args.beta_t}",
-            f"--temperature={args.temperature}", f"--seed={args.seed}",
-            f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}",
-            f"--snapshot_every={args.snapshot_every}", *server_tls, *metrics_flag("reward_server"),
+            os.path.join(BIN, "reward_server"), f"--port_file={reward_port_file}", *flags["reward_server"],
+            f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}", *server_tls, *metrics_flag("reward_server"),
             f"--listen=127.0.0.1:{args.reward_port}"],
             restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"],
             finished_codes=())  # It never finishes by itself: any exit is a death.
         reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
         learner_port = []
         ln = services.start("learner", [
-            os.path.join(BIN, "learner"), f"--port_file={learner_port_file}", *scenario_flags,
+            os.path.join(BIN, "learner"), f"--port_file={learner_port_file}", *flags["learner"],
             f"--run_dir={run_dir}", f"--trained_log={os.path.join(run_dir, 'logs', 'trained_unrolls.csv')}",
-            f"--checkpoint_seconds={args.checkpoint_seconds}",
             # Stopped by a signal it did not get from us (exit 143, not 0):
             # restarted, not taken for finished.
-            "--signal_exit_code=143",
-            f"--steps={args.steps}", f"--batch_steps={args.batch_steps}", f"--max_batch_mb={args.max_batch_mb}",
-            f"--lr={args.lr}",
-            f"--entropy_coef={args.entropy_coef}", f"--intrinsic_coef={args.intrinsic_coef}",
-            f"--seed={args.seed}", f"--edti={str(args.reward == 'edti').lower()}"] + learner_option_flags(args)
+            "--signal_exit_code=143"]
             + ([f"--resume={os.path.join(run_dir, 'checkpoints')}"] if args.resume else [])
             + server_tls + metrics_flag("learner") + [f"--listen=127.0.0.1:{args.learner_port}"],
             # From its newest checkpoint (none yet: from scratch).
@@ -768,9 +778,8 @@ def run(args):
             # episodes than the dead one: its seed moves with the restart.
             services.start(name, [
                 os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port[0]}",
-                f"--reward_server=127.0.0.1:{reward_port[0]}", *scenario_flags,
-                f"--envs={args.envs_per_actor}", f"--unroll_length={args.unroll_length}",
-                f"--actor_id={name}", f"--sync_unrolls={sync_unrolls(args)}", "--signal_exit_code=143",
+                f"--reward_server=127.0.0.1:{reward_port[0]}", *flags["actor"],
+                f"--actor_id={name}", "--signal_exit_code=143",
                 # Its own wait for an ack gives up before the supervisor's.
                 f"--ack_timeout_ms={int(args.stall_seconds * 500)}"] + actor_tls(i) + metrics_flag(name)
                 + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else [])

@@ -45,7 +45,7 @@ class MaddpgTest : public ::testing::Test {
     auto scenario = env::MakeScenario(sc, env::DefaultMapDir());
     ASSERT_TRUE(scenario.ok()) << scenario.status();
     scenario_ = *std::move(scenario);
-    config_.algo = Algo::kMaddpg;
+    config_ = DefaultLearnerConfig("pass", Algo::kMaddpg);  // Asynchronous, as MADDPG runs.
     config_.maddpg.batch_size = 8;
     config_.maddpg.learning_starts = 8;
     config_.maddpg.buffer_transitions = 64;

@@ -1,0 +1,147 @@
+#!/usr/bin/python3
+"""Every training default has one home, in C++ (docs/learner.md, "Defaults").
+
+For every scenario: each bare binary started with only --scenario resolves
+(`--print_config`) exactly the configuration that ./imca train runs and
+records in config.json ("resolved", and the flat settings it shows); and the
+deploy manifests pass only what a user overrides: wiring (addresses, files,
+secrets, restart behaviour) and ./imca train's options set to something
+other than the binary's default. A default re-stated in tools/launch.py or
+deploy/, or changed in one home only, fails here.
+"""
+import json
+import os
+import subprocess
+import sys
+import unittest
+
+ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+import launch  # noqa: E402
+import deploy_test  # noqa: E402  (the manifests' services, as its tests read them)
+
+# Flags that say where a process runs and how it is wired or supervised, not
+# what it trains: a deployment sets them for itself.
+WIRING = {
+    "reward_server": {"listen", "port_file", "snapshot", "status_file", "journal_fsync", "max_inflight",
+                      "max_inflight_per_actor", "max_receive_mb"},
+    "learner": {"listen", "port_file", "run_dir", "resume", "auto_resume", "trained_log", "status_file",
+                "signal_exit_code", "linger_seconds", "max_streams", "max_receive_mb"},
+    # The actor's seed is its own identity (./imca train gives actor i
+    # seed * 1000 + i + 1; a deployment's replicas draw theirs with 0).
+    "actor": {"learner", "reward_server", "actor_id", "seed", "rpc_timeout_ms", "ack_timeout_ms", "status_file",
+              "trace_file", "signal_exit_code"},
+}
+COMMON_WIRING = {"tls_cert", "tls_key", "tls_ca", "tls_client_auth", "tls_server_name", "token_file",
+                 "metrics_listen", "map"}
+
+
+def print_config(program, flags):
+    out = subprocess.run([os.path.join(BIN, program), *flags, "--print_config"], capture_output=True, text=True,
+                         timeout=120)
+    if out.returncode != 0:
+        raise AssertionError(f"{program} {' '.join(flags)} --print_config: {out.stderr.strip()}")
+    return json.loads(out.stdout)
+
+
+def overrides(program):
+    """{binary flag: ./imca train flag} of the options a user can override."""
+    return {programs[program]: flag for flag, programs, _ in launch.OPTIONS if program in programs}
+
+
+class OneHomeTest(unittest.TestCase):
+    def check_scenario(self, scenario, extra=()):
+        args = launch.parse_args(["--scenario", scenario, *extra])
+        flags, config = launch.plan(args)
+        for program in launch.PROGRAMS:
+            with self.subTest(scenario=scenario, program=program, extra=extra):
+                bare = print_config(program, [f"--scenario={scenario}"] + [
+                    f"--{f[2:].replace('-', '_')}={v}" for f, v in zip(extra[::2], extra[1::2])
+                    if program in dict((o[0], o[1]) for o in launch.OPTIONS)[f]])
+                self.assertEqual(config["resolved"][program], bare, f"./imca train's {program} is not the bare one")
+                # The settings config.json shows are the ones the binary runs.
+                for name, flag in overrides(program).items():
+                    if name in bare:
+                        self.assertEqual(config[launch.dest(flag)], bare[name], f"config.json {launch.dest(flag)}")
+
+    def test_bare_binaries_resolve_what_imca_train_runs(self):
+        for scenario in launch.facts()["scenarios"]:
+            self.check_scenario(scenario)
+
+    def test_the_algorithm_and_reward_kind_defaults_too(self):
+        self.check_scenario("spread", ("--algo", "maddpg"))
+        self.check_scenario("pass", ("--reward", "eiti"))
+
+    def test_list_prints_what_print_config_resolves(self):
+        known = launch.facts()
+        for scenario in ("coop_nav", "predator_prey"):
+            self.assertEqual(known["learner_defaults"]["mappo"][scenario],
+                             print_config("learner", [f"--scenario={scenario}"]))
+            self.assertEqual(known["actor_defaults"][scenario], print_config("actor", [f"--scenario={scenario}"]))
+        self.assertEqual(known["reward_defaults"]["rnd"], print_config("reward_server", ["--reward=rnd"]))
+
+    def test_print_config_passed_back_resolves_the_same(self):
+        for program in launch.PROGRAMS:
+            first = print_config(program, ["--scenario=coop_nav"])
+            flags = [f"--{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in first.items()]
+            self.assertEqual(print_config(program, ["--scenario=coop_nav"] + flags), first, program)
+
+    def test_the_tuned_defaults(self):
+        coop = print_config("learner", ["--scenario=coop_nav"])
+        self.assertEqual((coop["synchronous"], coop["batch_steps"], coop["separate_optimizers"], coop["lr"]),
+                         (True, 2048, True, 1e-3))
+        pp = print_config("learner", ["--scenario=predator_prey"])
+        self.assertEqual((pp["batch_steps"], pp["separate_optimizers"], pp["lr"]), (1024, False, 5e-4))
+        self.assertFalse(print_config("learner", ["--algo=maddpg"])["synchronous"])
+        self.assertEqual(print_config("actor", ["--scenario=coop_nav"])["unroll_length"], 32)
+        self.assertEqual(print_config("actor", ["--scenario=pass"])["unroll_length"], 16)
+        self.assertEqual(print_config("reward_server", [])["beta"], 0.5)
+        self.assertEqual(print_config("reward_server", ["--reward=edti"])["credit"], "independent")
+
+
+class ManifestsPassOnlyOverridesTest(unittest.TestCase):
+    def check(self, services):
+        self.check_actor_count(services)
+        for service in services.values():
+            program = service.binary
+            scenario = service.flag("scenario") or launch.facts()["default_scenario"]
+            resolved = print_config(program, [a for a in service.args if a.split("=")[0] in
+                                              ("--scenario", "--algo", "--reward")])
+            user = overrides(program)
+            for arg in service.args:
+                name, _, value = arg[2:].partition("=")
+                if name in WIRING[program] | COMMON_WIRING:
+                    continue
+                with self.subTest(service=service.name, flag=name):
+                    self.assertIn(name, user, f"{service.name}: --{name} is no option of ./imca train")
+                    if name in ("scenario",):
+                        continue  # The one choice every deployment states.
+                    self.assertIn(name, resolved, f"{service.name}: --{name}")
+                    default = resolved[name]
+                    given = value if value else "true"
+                    same = str(default).lower() == given.lower() if isinstance(default, bool) else (
+                        str(default) == given or (isinstance(default, float) and float(given) == default))
+                    self.assertFalse(same, f"{service.name} re-states --{name}={given}, the default for {scenario}")
+
+    def check_actor_count(self, services):
+        """A synchronous learner waits for the shares of --actors actors: as
+        many as the deployment runs."""
+        by_binary = deploy_test.by_binary(services)
+        learner = by_binary["learner"]
+        resolved = print_config("learner", [a for a in learner.args if a[2:].partition("=")[0] not in
+                                            WIRING["learner"] | COMMON_WIRING])
+        if resolved["synchronous"]:
+            self.assertEqual(resolved["actors"], by_binary["actor"].replicas,
+                             "the learner's --actors is not the number of actor replicas")
+
+    def test_compose(self):
+        self.check(deploy_test.load_compose())
+
+    def test_kubernetes(self):
+        self.check(deploy_test.k8s_services(deploy_test.load_k8s()[1]))
+
+
+if __name__ == "__main__":
+    unittest.main()
