@@ -12,7 +12,7 @@ debian:12 base with debootstrap if there is none (no registry answers here;
 the tarball is cached in ~/.cache/imca), builds the imca and Prometheus
 images, makes certificates (tools/make_certs.sh runs/compose/tls), and runs
 the compose file through docker-compose against `podman system service`
-with 2 actors and a budget of --steps (2M). It checks and prints: env steps to 90%
+with its 2 actors and a budget of --steps (2M). It checks and prints: env steps to 90%
 evaluation success (<= 1M), every Prometheus target up and the scraped
 env-step rate against metrics.csv's, kill -9 of the learner and then of the
 reward server (each restarted by compose and resumed, the reward server
@@ -213,11 +213,18 @@ def podman_service():
 
 # ------------------------------------------------------------------ compose
 
+def compose_actors():
+    """The compose file's actor replicas: what its learner's --actors expects."""
+    with open(COMPOSE) as f:
+        return yaml.safe_load(f)["services"]["actor"]["deploy"]["replicas"]
+
+
 class Compose:
-    def __init__(self, docker_host, steps, actors):
-        self.env = dict(os.environ, DOCKER_HOST=docker_host, IMCA_STEPS=str(steps),
-                        COMPOSE_PROJECT_NAME=PROJECT)
-        self.steps, self.actors = steps, actors
+    """docker-compose of deploy/docker-compose.yml; the learner's budget is
+    its ${IMCA_STEPS}."""
+
+    def __init__(self, docker_host, steps):
+        self.env = dict(os.environ, DOCKER_HOST=docker_host, IMCA_STEPS=str(steps), COMPOSE_PROJECT_NAME=PROJECT)
         self.started = False
 
     def __call__(self, *args, check=True, timeout=600):
@@ -424,9 +431,10 @@ def diagnose(c):
 
 
 def compose_test(figures, docker_host, steps, actors):
+    """The compose run with `actors` actor replicas (its deploy.replicas)."""
     fresh_run_folder()
     make_certs()
-    c = Compose(docker_host, steps, actors)
+    c = Compose(docker_host, steps)
     events = None
     try:
         started = time.time()
@@ -654,6 +662,9 @@ def kube_test(figures):
         manifest = os.path.join(tmp, "reward-server.yaml")
         container = smoke_manifest(manifest, claim)
         played = False
+        # kube play makes this network when it is missing; so it goes again.
+        network = "podman-default-kube-network"
+        had_network = podman("network", "exists", network, check=False).returncode == 0
         try:
             started = time.time()
             # From a folder of its own: podman 4.3's kube play looks for a
@@ -697,6 +708,8 @@ def kube_test(figures):
             if played:
                 podman("kube", "play", "--down", manifest, check=False, cwd=tmp)
             podman("volume", "rm", "-f", claim, check=False)
+            if not had_network:
+                podman("network", "rm", network, check=False)
 
 
 # ---------------------------------------------------------------------- main
@@ -716,7 +729,6 @@ def main(argv):
     p.set_defaults(from_source=False)
     p.add_argument("--steps", type=int, default=2_000_000,
                    help="the compose learner's budget (IMCA_STEPS; the compose default, 2M)")
-    p.add_argument("--actors", type=int, default=2)
     p.add_argument("--reuse-image", action="store_true", help="use an existing imca image as it is")
     args = p.parse_args(argv)
     # SIGTERM tears down as Ctrl-C does (the finally blocks).
@@ -742,7 +754,7 @@ def main(argv):
             with podman_service() as docker_host:
                 t = time.time()
                 try:
-                    compose_test(figures, docker_host, args.steps, args.actors)
+                    compose_test(figures, docker_host, args.steps, compose_actors())
                 finally:
                     timings["compose run"] = f"{time.time() - t:.0f} s"
         if args.part in ("all", "kube"):
