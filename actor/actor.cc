@@ -18,18 +18,6 @@
 #include "common/unroll_check.h"
 
 namespace imca::actor {
-namespace {
-
-uint64_t RandomIncarnation() {
-  std::random_device device;
-  uint64_t seed = (uint64_t{device()} << 32) ^ device() ^
-                  static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()) ^
-                  (static_cast<uint64_t>(getpid()) << 17);
-  const uint64_t value = Rng::SplitMix64(seed);
-  return value != 0 ? value : 1;
-}
-
-}  // namespace
 
 ActorConfig DefaultActorConfig(absl::string_view scenario) {
   ActorConfig config;
@@ -153,9 +141,11 @@ bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
     }
     backoff.Reset();
     if (policy.tensors_size() > 0) return Adopt(policy);
-    if (policy_.has_value() && policy.version() < policy_->version()) {
-      // Not modified, but the learner went back to an older checkpoint:
-      // take whatever it has.
+    if (policy_.has_value() &&
+        (policy.version() < policy_->version() || policy.learner_incarnation() != learner_incarnation_)) {
+      // Not modified, but the learner restarted from a checkpoint: older
+      // than ours, or ours, without the unrolls of it the old one took.
+      // Take whatever it has, and deliver that version's share anew.
       policy_.reset();
       min_version = 0;
       continue;
@@ -189,6 +179,8 @@ bool Actor::Adopt(const v1::Policy& policy) {
     sync_unrolls_ = static_cast<int>(share / unroll_steps);
   }
   policy_ = *std::move(mlp);
+  learner_incarnation_ = policy.learner_incarnation();
+  version_unrolls_ = 0;  // A share starts with each policy taken.
   counters_.policy_updates->Increment();
   counters_.policy_version->Set(static_cast<double>(policy.version()));
   return true;

@@ -197,6 +197,7 @@ class Actor {
   Counters counters_;
   int version_unrolls_ = 0;  // Unrolls pushed with the current policy version.
   int sync_unrolls_ = 0;     // In effect: config_.sync_unrolls, or as the policy asks.
+  uint64_t learner_incarnation_ = 0;  // Of the learner that served policy_.
 
   // Scratch buffers, sized once.
   std::vector<float> obs_;

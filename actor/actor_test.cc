@@ -6,6 +6,7 @@
 #include "actor/actor.h"
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <thread>
 
@@ -161,8 +162,13 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
 // its policy the actor must act the new learner's whole share of version 0.
 class SwitchingLearnerService final : public v1::LearnerService::Service {
  public:
-  SwitchingLearnerService(learner::Learner* first, learner::Learner* second, int64_t switch_at)
-      : first_(first), second_(second), first_service_(first), second_service_(second), switch_at_(switch_at) {}
+  // Switches once `switch_when` holds.
+  SwitchingLearnerService(learner::Learner* first, learner::Learner* second, std::function<bool()> switch_when)
+      : first_(first),
+        second_(second),
+        first_service_(first),
+        second_service_(second),
+        switch_when_(std::move(switch_when)) {}
 
   grpc::Status PushUnrolls(grpc::ServerContext* context,
                            grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) override {
@@ -187,9 +193,9 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
 
  private:
   learner::Learner* Current() { return switched_ ? second_ : first_; }
-  // True the first time: the first learner reached switch_at and is gone.
+  // True the first time: switch_when held and the first learner is gone.
   bool Switch() {
-    if (switched_ || first_->Status().policy_version() < switch_at_) return false;
+    if (switched_ || !switch_when_()) return false;
     bool expected = false;
     if (!switched_.compare_exchange_strong(expected, true)) return false;
     first_->Stop();
@@ -199,11 +205,11 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
   learner::Learner* first_;
   learner::Learner* second_;
   learner::LearnerServiceImpl first_service_, second_service_;
-  const int64_t switch_at_;
+  const std::function<bool()> switch_when_;
   std::atomic<bool> switched_{false};
 };
 
-// Last in this file: on failure it ends the actor with RequestShutdown().
+// The last two in this file: on failure they end the actor with RequestShutdown().
 TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok()) << scenario.status();
@@ -219,7 +225,8 @@ TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   config.budget_steps = 4 * config.batch_steps;
   auto second = learner::Learner::Create(scenario->get(), config);
   ASSERT_TRUE(first.ok() && second.ok());
-  SwitchingLearnerService service(first->get(), second->get(), /*switch_at=*/3);
+  SwitchingLearnerService service(first->get(), second->get(),
+                                  [&] { return (*first)->Status().policy_version() >= 3; });
   reward::ScorerConfig scorer_config;
   scorer_config.credit = reward::Credit::kImca;
   auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
@@ -260,6 +267,73 @@ TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   EXPECT_TRUE((*second)->Status().done());
   EXPECT_EQ((*second)->Status().env_steps(), 4 * config.batch_steps);
   EXPECT_GE((*first)->Status().policy_version(), 3);
+  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+}
+
+// A learner killed right after a checkpoint resumes at the very version the
+// actors hold, without the unrolls of it they delivered to the old one: a
+// synchronous actor sees the new incarnation and acts its share again
+// (else each side waits for the other for ever).
+TEST(ActorFaultTest, ASynchronousActorActsItsShareAgainForALearnerRestartedAtItsVersion) {
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  constexpr int kEnvs = 8, kLength = 16, kShareUnrolls = 2;
+  constexpr int64_t kShare = kShareUnrolls * kEnvs * kLength;
+  learner::LearnerConfig config;
+  config.checkpoint_every = 0;
+  config.checkpoint_seconds = 0;
+  config.ppo.hidden = 16;
+  config.synchronous = true;
+  config.actors = 2;  // The first waits for a second actor that never comes: it never trains.
+  config.batch_steps = 2 * kShare;
+  auto first = learner::Learner::Create(scenario->get(), config);
+  config.actors = 1;
+  config.batch_steps = kShare;
+  config.budget_steps = 2 * kShare;
+  auto second = learner::Learner::Create(scenario->get(), config);
+  ASSERT_TRUE(first.ok() && second.ok());
+  // The switch comes once the actor's whole share of version 0 is queued.
+  SwitchingLearnerService service(first->get(), second->get(),
+                                  [&] { return (*first)->Status().unrolls_received() >= kShareUnrolls; });
+  reward::ScorerConfig scorer_config;
+  auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
+  ASSERT_TRUE(scorer.ok());
+  reward::RewardServiceImpl reward(scenario->get(), scorer->get(), "count", scorer_config, "");
+  int learner_port = 0, reward_port = 0;
+  auto learner_server = StartServer("127.0.0.1:0", {&service}, &learner_port);
+  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
+  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
+  std::thread first_trainer([&] { EXPECT_TRUE((*first)->Run().ok()); });
+  std::thread second_trainer([&] { EXPECT_TRUE((*second)->Run().ok()); });
+
+  actor::ActorConfig actor_config;  // sync_unrolls -1: as each policy asks.
+  actor_config.num_envs = kEnvs;
+  actor_config.unroll_length = kLength;
+  actor_config.eval_envs = 1;
+  actor_config.rpc_timeout = std::chrono::milliseconds(2000);
+  actor::Actor actor(scenario->get(), actor_config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
+                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  std::atomic<bool> finished{false};
+  std::thread acting([&] {
+    EXPECT_TRUE(actor.Run().ok());
+    finished = true;
+  });
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!finished && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(finished) << "the actor waits for version 1 while the restarted learner waits for its share of 0";
+  if (!finished) {
+    RequestShutdown();
+    (*second)->Stop();
+  }
+  acting.join();
+  first_trainer.join();
+  second_trainer.join();
+  EXPECT_EQ((*first)->Status().policy_version(), 0);
+  EXPECT_TRUE((*second)->Status().done());
+  EXPECT_EQ((*second)->Status().env_steps(), 2 * kShare);
   (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
   (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
 }

@@ -1,7 +1,11 @@
 #ifndef IMCA_COMMON_RNG_H_
 #define IMCA_COMMON_RNG_H_
 
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdint>
+#include <random>
 
 namespace imca {
 
@@ -48,6 +52,17 @@ class Rng {
   static uint64_t Rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
   uint64_t s_[4];
 };
+
+// A random nonzero id of a process's incarnation (the device, the clock and
+// the pid mixed): a restarted process draws another.
+inline uint64_t RandomIncarnation() {
+  std::random_device device;
+  uint64_t seed = (uint64_t{device()} << 32) ^ device() ^
+                  static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count()) ^
+                  (static_cast<uint64_t>(getpid()) << 17);
+  const uint64_t value = Rng::SplitMix64(seed);
+  return value != 0 ? value : 1;
+}
 
 }  // namespace imca
 

@@ -20,6 +20,7 @@
 #include "absl/time/time.h"
 #include "common/env.h"
 #include "common/metrics.h"
+#include "common/rng.h"
 #include "common/featurizer.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
@@ -72,6 +73,8 @@ class Learner {
 
   // The newest published policy (never null after Create).
   std::shared_ptr<const v1::Policy> CurrentPolicy() const;
+  // This learner's incarnation, drawn at construction (Policy.learner_incarnation).
+  uint64_t incarnation() const { return incarnation_; }
   // Blocks until a policy of version >= min_version is published, `timeout`
   // passes or the learner stops; returns the newest policy either way.
   std::shared_ptr<const v1::Policy> WaitForPolicy(int64_t min_version, absl::Duration timeout) const;
@@ -160,6 +163,7 @@ class Learner {
   // Refused unrolls by reason (v1::Rejection), each series there from the start.
   std::vector<metrics::Counter*> dropped_;
   std::unique_ptr<Algorithm> algorithm_;  // Training thread only (but its thread-safe Featurise).
+  const uint64_t incarnation_ = RandomIncarnation();
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   std::ofstream metrics_;                // Training thread only.
   bool metrics_ok_ = true;               // Training thread only: the last row was written.

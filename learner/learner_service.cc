@@ -98,6 +98,7 @@ grpc::Status LearnerServiceImpl::GetPolicy(grpc::ServerContext*, const v1::GetPo
   } else {
     response->set_version(policy->version());
   }
+  response->set_learner_incarnation(learner_->incarnation());
   return grpc::Status::OK;
 }
 

@@ -199,6 +199,8 @@ class Deployment:
             elif value.startswith("/"):
                 arg = f"--{name}={self.tmp}{value}"
             out.append(arg)
+        if steps is not None and service.binary == "learner" and not service.flag("steps"):
+            out.append(f"--steps={steps}")  # The deployment trains the default budget; here a small one.
         for mount in service.mounts:
             os.makedirs(self.tmp + mount, exist_ok=True)
         return out

@@ -219,17 +219,34 @@ def compose_actors():
         return yaml.safe_load(f)["services"]["actor"]["deploy"]["replicas"]
 
 
+def learner_default_steps():
+    """The learner binary's default budget (what the compose file trains)."""
+    out = subprocess.run([os.path.join(launch.BIN, "learner"), "--print_config"], capture_output=True, text=True,
+                         check=True)
+    return json.loads(out.stdout)["steps"]
+
+
 class Compose:
-    """docker-compose of deploy/docker-compose.yml; the learner's budget is
-    its ${IMCA_STEPS}."""
+    """docker-compose of deploy/docker-compose.yml as it is; another budget
+    than the learner's default comes in an override file that appends
+    --steps to the learner's command, as a user would."""
 
     def __init__(self, docker_host, steps):
-        self.env = dict(os.environ, DOCKER_HOST=docker_host, IMCA_STEPS=str(steps), COMPOSE_PROJECT_NAME=PROJECT)
+        self.env = dict(os.environ, DOCKER_HOST=docker_host, COMPOSE_PROJECT_NAME=PROJECT)
+        self.files = ["-f", COMPOSE]
+        if steps != learner_default_steps():
+            with open(COMPOSE) as f:
+                command = yaml.safe_load(f)["services"]["learner"]["command"]
+            override = os.path.join(tempfile.mkdtemp(prefix="imca-compose-"), "budget.yml")
+            with open(override, "w") as f:
+                yaml.safe_dump({"version": "3.8", "services": {"learner": {"command": command + [f"--steps={steps}"]}}},
+                               f)
+            self.files += ["-f", override]
         self.started = False
 
     def __call__(self, *args, check=True, timeout=600):
         say("$ docker-compose " + " ".join(args))
-        r = subprocess.run(["docker-compose", "-f", COMPOSE, *args], env=self.env, capture_output=True, text=True,
+        r = subprocess.run(["docker-compose", *self.files, *args], env=self.env, capture_output=True, text=True,
                            timeout=timeout)
         if check and r.returncode != 0:
             raise RuntimeError(f"docker-compose {' '.join(args)} exited {r.returncode}:\n{r.stdout}{r.stderr}")
@@ -296,7 +313,7 @@ def wait_for(what, done, timeout, poll=1.0):
         time.sleep(poll)
 
 
-def wait_run(what, done, timeout=1800, stall=120):
+def wait_run(what, done, timeout=1800, stall=120, poll=0.5):
     """wait_for on the run, failing early if metrics.csv stops growing for
     `stall` seconds (a deadlocked run, not a slow one)."""
     last = [None, time.time()]
@@ -310,7 +327,7 @@ def wait_run(what, done, timeout=1800, stall=120):
             raise RuntimeError(f"waiting for {what}: the run made no progress for {stall} s "
                                f"(metrics.csv at {steps} env steps)")
         return done()
-    return wait_for(what, check, timeout, poll=0.5)
+    return wait_for(what, check, timeout, poll=poll)
 
 
 def newest_checkpoint():
@@ -458,13 +475,14 @@ def compose_test(figures, docker_host, steps, actors):
             figures.add("Prometheus targets up", [(t["labels"]["job"], t["health"], t.get("lastError"))
                                                   for t in active], f"{2 + actors} up", False)
 
-        # (c) the learner killed past half the budget, at least 10 iterations
-        # after its newest checkpoint: it resumes behind the actors' policy,
-        # as after most crashes. (Killed just after a checkpoint, it resumed
-        # at the actors' own version and the run deadlocked: the actors waited
-        # for a newer policy, the learner for their unrolls.)
-        # Past 70% of the budget it goes ahead with fewer scrapes.
+        # (c) the learner killed past half the budget (past 70% with fewer
+        # scrapes), at once after a new checkpoint: it resumes at, or just
+        # behind, the version the actors hold, with none of the unrolls of it
+        # they delivered; at the same version, only the learner's new
+        # incarnation tells them to act their share again
+        # (actor_test.cc, ...ActsItsShareAgainForALearnerRestartedAtItsVersion).
         said = [0.0]
+        ready_at = [None]  # The newest checkpoint once past half the budget.
 
         def half_way():
             rows = metrics_rows()
@@ -475,19 +493,24 @@ def compose_test(figures, docker_host, steps, actors):
             if time.time() - said[0] > 10:
                 said[0] = time.time()
                 say(f"iteration {rows[-1]['iteration']}, newest checkpoint {checkpoint}, {scrapes} steady scrapes")
-            return (int(rows[-1]["iteration"]) >= checkpoint + 10
-                    and (scrapes >= STEADY_SCRAPES or int(rows[-1]["env_steps"]) >= 0.7 * steps))
-        wait_run("half the budget", half_way)
+            if ready_at[0] is None:
+                if scrapes >= STEADY_SCRAPES or int(rows[-1]["env_steps"]) >= 0.7 * steps:
+                    ready_at[0] = checkpoint
+                return False
+            return checkpoint > ready_at[0]
+        wait_run("half the budget and a new checkpoint", half_way, poll=0.05)
         t_kill = time.time()
-        rate_check(figures, t_kill)
         learner, restarts = kill_main_process(c, "learner")
+        killed_after = int(metrics_rows()[-1]["iteration"]) - newest_checkpoint()
+        rate_check(figures, t_kill)  # Over the scrapes before the kill.
         before = c.logs(learner).count("resumed at policy version")
         count = wait_restarted(c, learner, restarts)
         log = wait_for("the learner's resume line", lambda: (lambda t: t if t.count(
             "resumed at policy version") > before else None)(c.logs(learner)), 120, poll=0.5)
         version = int(log.rsplit("resumed at policy version ", 1)[1].split()[0])
-        figures.add("learner kill -9: restarted and resumed", f"restart {count}, resumed at policy version {version}",
-                    "restarted by compose, version > 0", version > 0)
+        figures.add("learner kill -9: restarted and resumed",
+                    f"restart {count}, resumed at policy version {version} (killed {killed_after} iteration(s) "
+                    "after that checkpoint)", "restarted by compose, version > 0", version > 0)
 
         # The reward server at three quarters: every answered count survives.
         wait_run("three quarters of the budget",
@@ -728,7 +751,8 @@ def main(argv):
                       help="the image from deploy/Dockerfile as it is (compiles everything)")
     p.set_defaults(from_source=False)
     p.add_argument("--steps", type=int, default=2_000_000,
-                   help="the compose learner's budget (IMCA_STEPS; the compose default, 2M)")
+                   help="the compose learner's budget (default: the learner's, 2M; another comes in an "
+                        "override file)")
     p.add_argument("--reuse-image", action="store_true", help="use an existing imca image as it is")
     args = p.parse_args(argv)
     # SIGTERM tears down as Ctrl-C does (the finally blocks).
