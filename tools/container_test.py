@@ -54,19 +54,19 @@ IMAGE = "localhost/imca:latest"
 PROMETHEUS_IMAGE = "localhost/imca-prometheus:latest"
 PROJECT = "imcadeploytest"
 IMAGE_BINARIES = ("reward_server", "learner", "actor", "imca_env", "imca_health")
-MIRROR = "http://deb.debian.org/debian"
-SOURCES = """Types: deb
-URIs: http://deb.debian.org/debian
-Suites: bookworm bookworm-updates
-Components: main
-Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
+# The image's apt sources are the host's: the archive this machine installs from.
+HOST_SOURCES = "/etc/apt/sources.list.d/debian.sources"
 
-Types: deb
-URIs: http://deb.debian.org/debian-security
-Suites: bookworm-security
-Components: main
-Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
-"""
+
+def host_sources():
+    """(the host's Debian archive URI, its deb822 sources text) for debootstrap
+    and the base image's apt."""
+    with open(HOST_SOURCES) as f:
+        text = f.read()
+    uri = re.search(r"^URIs:\s*(\S+)", text, re.M)
+    if not uri:
+        raise RuntimeError(f"{HOST_SOURCES} names no archive (URIs:)")
+    return uri.group(1), text
 
 
 def say(text):
@@ -115,8 +115,8 @@ def setup_engine():
 
 
 def make_base():
-    """debian:12 for the Dockerfiles' FROM: debootstrap (minbase, the sources
-    of the official image) imported once; the tarball is cached."""
+    """debian:12 for the Dockerfiles' FROM: debootstrap (minbase, from the
+    host's archive and with its sources) imported once; the tarball is cached."""
     if podman("image", "exists", BASE, check=False).returncode == 0:
         return "present"
     os.makedirs(CACHE, exist_ok=True)
@@ -125,10 +125,11 @@ def make_base():
     if not os.path.exists(tarball):
         rootfs = tempfile.mkdtemp(prefix="debian-12-", dir=CACHE)
         try:
-            run(["debootstrap", "--variant=minbase", "bookworm", rootfs, MIRROR])
+            mirror, sources = host_sources()
+            run(["debootstrap", "--variant=minbase", "bookworm", rootfs, mirror])
             os.remove(os.path.join(rootfs, "etc", "apt", "sources.list"))
             with open(os.path.join(rootfs, "etc", "apt", "sources.list.d", "debian.sources"), "w") as f:
-                f.write(SOURCES)
+                f.write(sources)
             run(["sh", "-c", f"rm -rf {rootfs}/var/cache/apt/archives/*.deb {rootfs}/var/lib/apt/lists/*"])
             run(["tar", "--numeric-owner", "-C", rootfs, "-cf", tarball + ".tmp", "."])
             os.replace(tarball + ".tmp", tarball)
@@ -447,12 +448,40 @@ def diagnose(c):
         say(f"{name} log tail:\n" + "\n".join(c.logs(name).splitlines()[-4:]))
 
 
+def same_configuration(figures):
+    """(a)'s premise: the compose services resolve the configuration that
+    ./imca train runs with the same overrides (its config.json's
+    "resolved"), asked of the image's own binaries (--print_config)."""
+    with open(COMPOSE) as f:
+        services = yaml.safe_load(f)["services"]
+    argv, flags = [], {}
+    for program in launch.PROGRAMS:
+        options = {programs[program]: flag for flag, programs, _ in launch.OPTIONS if program in programs}
+        command = services[program]["command"]
+        # The training flags only: wiring (addresses, files, secrets) is the deployment's.
+        flags[program] = [a for a in command[1:] if a[2:].partition("=")[0] in options]
+        for a in flags[program]:
+            name, _, value = a[2:].partition("=")
+            if options[name] not in argv:
+                argv += [options[name], value]
+    _, config = launch.plan(launch.parse_args(argv))
+    differ = []
+    for program in launch.PROGRAMS:
+        out = podman("run", "--rm", IMAGE, program, *flags[program], "--print_config")
+        if json.loads(out.stdout) != config["resolved"][program]:
+            differ.append(program)
+    return figures.add("compose trains ./imca train's configuration",
+                       f"./imca train {' '.join(argv)}: {'same' if not differ else 'differs: ' + ', '.join(differ)}",
+                       "the image's --print_config = config.json's resolved, each service", not differ)
+
+
 def compose_test(figures, docker_host, steps, actors):
     """The compose run with `actors` actor replicas (its deploy.replicas)."""
     fresh_run_folder()
     make_certs()
     c = Compose(docker_host, steps)
     events = None
+    same_configuration(figures)
     try:
         started = time.time()
         c("up", "-d", "--no-build", "--scale", f"actor={actors}")
