@@ -209,7 +209,62 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
   std::atomic<bool> switched_{false};
 };
 
-// The last two in this file: on failure they end the actor with RequestShutdown().
+// One actor with `actor_config` against `first`, then, once `switch_when`
+// holds, against `second` (as a learner restarted on the same address), with
+// a count reward server; both learners train meanwhile. True if the actor
+// finished (its learner's budget done) within `limit`; else it is ended with
+// RequestShutdown(), so a test that calls this must be last in this file.
+bool ActsThroughARestart(const env::Scenario* scenario, learner::Learner* first, learner::Learner* second,
+                         std::function<bool()> switch_when, const actor::ActorConfig& actor_config,
+                         std::chrono::seconds limit) {
+  SwitchingLearnerService service(first, second, std::move(switch_when));
+  reward::ScorerConfig scorer_config;
+  auto scorer = reward::MakeScorer("count", *scenario, scorer_config);
+  EXPECT_TRUE(scorer.ok());
+  if (!scorer.ok()) return false;
+  reward::RewardServiceImpl reward(scenario, scorer->get(), "count", scorer_config, "");
+  int learner_port = 0, reward_port = 0;
+  auto learner_server = StartServer("127.0.0.1:0", {&service}, &learner_port);
+  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
+  EXPECT_TRUE(learner_server.ok() && reward_server.ok());
+  if (!learner_server.ok() || !reward_server.ok()) return false;
+  std::thread first_trainer([&] { EXPECT_TRUE(first->Run().ok()); });
+  std::thread second_trainer([&] { EXPECT_TRUE(second->Run().ok()); });
+  actor::Actor actor(scenario, actor_config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
+                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  std::atomic<bool> finished{false};
+  std::thread acting([&] {
+    EXPECT_TRUE(actor.Run().ok());
+    finished = true;
+  });
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!finished && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const bool done = finished;
+  if (!done) {
+    RequestShutdown();
+    second->Stop();
+  }
+  acting.join();
+  first->Stop();
+  first_trainer.join();
+  second_trainer.join();
+  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  return done;
+}
+
+actor::ActorConfig SmallActor(int envs, int length) {
+  actor::ActorConfig config;
+  config.num_envs = envs;
+  config.unroll_length = length;
+  config.eval_envs = 1;
+  config.rpc_timeout = std::chrono::milliseconds(2000);
+  return config;
+}
+
+// The last two in this file (ActsThroughARestart).
 TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok()) << scenario.status();
@@ -225,50 +280,15 @@ TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   config.budget_steps = 4 * config.batch_steps;
   auto second = learner::Learner::Create(scenario->get(), config);
   ASSERT_TRUE(first.ok() && second.ok());
-  SwitchingLearnerService service(first->get(), second->get(),
-                                  [&] { return (*first)->Status().policy_version() >= 3; });
-  reward::ScorerConfig scorer_config;
-  scorer_config.credit = reward::Credit::kImca;
-  auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
-  ASSERT_TRUE(scorer.ok());
-  reward::RewardServiceImpl reward(scenario->get(), scorer->get(), "count", scorer_config, "");
-  int learner_port = 0, reward_port = 0;
-  auto learner_server = StartServer("127.0.0.1:0", {&service}, &learner_port);
-  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
-  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
-  std::thread first_trainer([&] { EXPECT_TRUE((*first)->Run().ok()); });
-  std::thread second_trainer([&] { EXPECT_TRUE((*second)->Run().ok()); });
-
-  actor::ActorConfig actor_config;
-  actor_config.num_envs = kEnvs;
-  actor_config.unroll_length = kLength;
-  actor_config.eval_envs = 1;
+  actor::ActorConfig actor_config = SmallActor(kEnvs, kLength);
   actor_config.sync_unrolls = kUnrollsPerVersion;
-  actor_config.rpc_timeout = std::chrono::milliseconds(2000);
-  actor::Actor actor(scenario->get(), actor_config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
-                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
-  std::atomic<bool> finished{false};
-  std::thread acting([&] {
-    EXPECT_TRUE(actor.Run().ok());
-    finished = true;
-  });
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (!finished && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  EXPECT_TRUE(finished) << "the actor waits for a version the new learner cannot train (it lacks the unrolls)";
-  if (!finished) {
-    RequestShutdown();
-    (*second)->Stop();
-  }
-  acting.join();
-  first_trainer.join();
-  second_trainer.join();
+  EXPECT_TRUE(ActsThroughARestart(
+      scenario->get(), first->get(), second->get(), [&] { return (*first)->Status().policy_version() >= 3; },
+      actor_config, std::chrono::seconds(60)))
+      << "the actor waits for a version the new learner cannot train (it lacks the unrolls)";
   EXPECT_TRUE((*second)->Status().done());
   EXPECT_EQ((*second)->Status().env_steps(), 4 * config.batch_steps);
   EXPECT_GE((*first)->Status().policy_version(), 3);
-  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
-  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
 }
 
 // A learner killed right after a checkpoint resumes at the very version the
@@ -293,49 +313,16 @@ TEST(ActorFaultTest, ASynchronousActorActsItsShareAgainForALearnerRestartedAtIts
   config.budget_steps = 2 * kShare;
   auto second = learner::Learner::Create(scenario->get(), config);
   ASSERT_TRUE(first.ok() && second.ok());
-  // The switch comes once the actor's whole share of version 0 is queued.
-  SwitchingLearnerService service(first->get(), second->get(),
-                                  [&] { return (*first)->Status().unrolls_received() >= kShareUnrolls; });
-  reward::ScorerConfig scorer_config;
-  auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
-  ASSERT_TRUE(scorer.ok());
-  reward::RewardServiceImpl reward(scenario->get(), scorer->get(), "count", scorer_config, "");
-  int learner_port = 0, reward_port = 0;
-  auto learner_server = StartServer("127.0.0.1:0", {&service}, &learner_port);
-  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
-  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
-  std::thread first_trainer([&] { EXPECT_TRUE((*first)->Run().ok()); });
-  std::thread second_trainer([&] { EXPECT_TRUE((*second)->Run().ok()); });
-
-  actor::ActorConfig actor_config;  // sync_unrolls -1: as each policy asks.
-  actor_config.num_envs = kEnvs;
-  actor_config.unroll_length = kLength;
-  actor_config.eval_envs = 1;
-  actor_config.rpc_timeout = std::chrono::milliseconds(2000);
-  actor::Actor actor(scenario->get(), actor_config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
-                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
-  std::atomic<bool> finished{false};
-  std::thread acting([&] {
-    EXPECT_TRUE(actor.Run().ok());
-    finished = true;
-  });
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!finished && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  EXPECT_TRUE(finished) << "the actor waits for version 1 while the restarted learner waits for its share of 0";
-  if (!finished) {
-    RequestShutdown();
-    (*second)->Stop();
-  }
-  acting.join();
-  first_trainer.join();
-  second_trainer.join();
+  // The switch comes once the actor's whole share of version 0 is queued;
+  // the actor asks each policy for its share (sync_unrolls -1).
+  EXPECT_TRUE(ActsThroughARestart(
+      scenario->get(), first->get(), second->get(),
+      [&] { return (*first)->Status().unrolls_received() >= kShareUnrolls; }, SmallActor(kEnvs, kLength),
+      std::chrono::seconds(30)))
+      << "the actor waits for version 1 while the restarted learner waits for its share of 0";
   EXPECT_EQ((*first)->Status().policy_version(), 0);
   EXPECT_TRUE((*second)->Status().done());
   EXPECT_EQ((*second)->Status().env_steps(), 2 * kShare);
-  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
-  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
 }
 
 }  // namespace
