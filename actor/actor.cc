@@ -26,18 +26,19 @@ ActorConfig DefaultActorConfig(absl::string_view scenario) {
 }
 
 absl::Status Actor::Validate(const ActorConfig& config) {
-  if (config.num_envs < 1) return absl::InvalidArgumentError("num_envs must be >= 1");
-  if (config.unroll_length < 1) return absl::InvalidArgumentError("unroll_length must be >= 1");
-  if (config.eval_envs < 0) return absl::InvalidArgumentError("eval_envs must be >= 0");
+  if (config.num_envs < 1) return absl::InvalidArgumentError("num_envs (--envs) must be >= 1");
+  if (config.unroll_length < 1) return absl::InvalidArgumentError("unroll_length (--unroll_length) must be >= 1");
+  if (config.eval_envs < 0) return absl::InvalidArgumentError("eval_envs (--eval_envs) must be >= 0");
   if (config.sync_unrolls < -1) {
-    return absl::InvalidArgumentError("sync_unrolls must be >= 0, or -1 (as the learner's policy asks)");
+    return absl::InvalidArgumentError("sync_unrolls (--sync_unrolls) must be >= 0, or -1 (as the learner's policy asks)");
   }
   if (int64_t{config.num_envs} * config.unroll_length > kMaxTransitions) {
     return absl::InvalidArgumentError(
-        absl::StrCat("num_envs * unroll_length must be <= ", kMaxTransitions, " (an unroll's transitions)"));
+        absl::StrCat("num_envs * unroll_length (--envs x --unroll_length) must be <= ", kMaxTransitions,
+                     " (an unroll's transitions)"));
   }
   if (config.rpc_timeout.count() < 100 || config.ack_timeout.count() < 100) {
-    return absl::InvalidArgumentError("rpc_timeout and ack_timeout must be >= 100 ms");
+    return absl::InvalidArgumentError("rpc_timeout and ack_timeout (--rpc_timeout_ms, --ack_timeout_ms) must be >= 100 ms");
   }
   return absl::OkStatus();
 }

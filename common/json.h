@@ -41,7 +41,7 @@ inline std::string JsonStrings(const std::vector<std::string>& items) {
 // float, for a float).
 template <typename T>
 std::string ExactNumber(T value) {
-  if (value == static_cast<T>(static_cast<int64_t>(value)) && value < T(1e15) && value > T(-1e15)) {
+  if (value < T(1e15) && value > T(-1e15) && value == static_cast<T>(static_cast<int64_t>(value))) {
     return absl::StrCat(static_cast<int64_t>(value));
   }
   for (int digits = 1; digits < 17; ++digits) {

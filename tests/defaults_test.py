@@ -38,6 +38,10 @@ COMMON_WIRING = {"tls_cert", "tls_key", "tls_ca", "tls_client_auth", "tls_server
                  "metrics_listen", "map"}
 
 
+# ./imca train flag -> {program: the binary's flag}.
+PROGRAMS_OF = {flag: programs for flag, programs, _ in launch.OPTIONS}
+
+
 def print_config(program, flags):
     out = subprocess.run([os.path.join(BIN, program), *flags, "--print_config"], capture_output=True, text=True,
                          timeout=120)
@@ -58,8 +62,8 @@ class OneHomeTest(unittest.TestCase):
         for program in launch.PROGRAMS:
             with self.subTest(scenario=scenario, program=program, extra=extra):
                 bare = print_config(program, [f"--scenario={scenario}"] + [
-                    f"--{f[2:].replace('-', '_')}={v}" for f, v in zip(extra[::2], extra[1::2])
-                    if program in dict((o[0], o[1]) for o in launch.OPTIONS)[f]])
+                    f"--{PROGRAMS_OF[flag][program]}={value}" for flag, value in zip(extra[::2], extra[1::2])
+                    if program in PROGRAMS_OF[flag]])
                 self.assertEqual(config["resolved"][program], bare, f"./imca train's {program} is not the bare one")
                 # The settings config.json shows are the ones the binary runs.
                 for name, flag in overrides(program).items():

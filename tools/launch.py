@@ -176,14 +176,8 @@ V1_DEFAULTS = {"sync": False, "batch_steps": 8192, "unroll_length": 64, "separat
 
 def resolved_defaults(args):
     """{program: {binary flag: default}} for the scenario, algorithm and
-    reward kind in args (filled first): what `<program> --list` resolves."""
+    reward kind of args: what `<program> --list` resolves."""
     known = facts()
-    if args.scenario is None:
-        args.scenario = known["default_scenario"]
-    if args.algo is None:
-        args.algo = known["default_algo"]
-    if args.reward is None:
-        args.reward = known["default_reward"]
     return {"reward_server": known["reward_defaults"][args.reward],
             "learner": known["learner_defaults"][args.algo][args.scenario],
             "actor": known["actor_defaults"][args.scenario]}
@@ -249,6 +243,10 @@ def parse_args(argv):
         # whatever the defaults are now.
         args.given = sorted(k for k in given if k in {dest(f) for f, _, _ in OPTIONS})
         args.out = args.resume
+    # The three choices the other defaults depend on, first.
+    for choice in ("scenario", "algo", "reward"):
+        if getattr(args, choice) is None:
+            setattr(args, choice, known[f"default_{choice}"])
     defaults = resolved_defaults(args)
     for flag, programs, _ in OPTIONS:
         if getattr(args, dest(flag)) is None:
@@ -296,7 +294,7 @@ def print_config(args, program, flags):
         named = []
         for flag, programs, _ in OPTIONS:
             name = programs.get(program)
-            found = re.search(rf"(?<![\w-]){re.escape(name)}(?!\w)", reason) if name else None
+            found = re.search(rf"(?<!\w){re.escape(name)}(?!\w)", reason) if name else None
             if found and dest(flag) in args.given:
                 named.append((found.start(), flag))
         raise LaunchError(f"argument {min(named)[1]}: {message}" if named else message)
