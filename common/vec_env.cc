@@ -12,13 +12,41 @@ VecEnv::VecEnv(const Scenario* scenario, int num_envs, uint64_t seed)
       states_(static_cast<size_t>(num_envs) * k_),
       episode_count_(num_envs, 0),
       returns_(num_envs, 0.0f) {
-  rngs_.reserve(num_envs);
-  for (int e = 0; e < num_envs; ++e) {
-    uint64_t mix = seed ^ (0x5851f42d4c957f2dULL * (e + 1));
-    rngs_.emplace_back(Rng::SplitMix64(mix));
-    scenario_->Reset(rngs_[e], &states_[static_cast<size_t>(e) * k_]);
-  }
+  rngs_.resize(num_envs);
+  SeedAll(seed, nullptr);
   finished_.reserve(num_envs * 2);
+}
+
+uint64_t VecEnv::EnvSeed(uint64_t seed, int e) {
+  uint64_t mix = seed ^ (0x5851f42d4c957f2dULL * (e + 1));
+  return Rng::SplitMix64(mix);
+}
+
+void VecEnv::Reseed(uint64_t seed, const int32_t* states) {
+  SeedAll(seed, states);
+  for (int e = 0; e < num_envs_; ++e) StartEpisode(e);
+}
+
+void VecEnv::SeedAll(uint64_t seed, const int32_t* states) {
+  for (int e = 0; e < num_envs_; ++e) {
+    rngs_[e].Seed(EnvSeed(seed, e));
+    int32_t* state = &states_[static_cast<size_t>(e) * k_];
+    if (states != nullptr) {
+      std::memcpy(state, states + static_cast<size_t>(e) * k_, sizeof(int32_t) * k_);
+    } else {
+      scenario_->Reset(rngs_[e], state);
+    }
+  }
+}
+
+void VecEnv::ResetEnv(int e) {
+  scenario_->Reset(rngs_[e], &states_[static_cast<size_t>(e) * k_]);
+  StartEpisode(e);
+}
+
+void VecEnv::StartEpisode(int e) {
+  returns_[e] = 0;
+  ++episode_count_[e];
 }
 
 void VecEnv::Step(const int32_t* actions, float* rewards, bool* terminated, bool* truncated,
@@ -34,10 +62,8 @@ void VecEnv::Step(const int32_t* actions, float* rewards, bool* terminated, bool
     truncated[e] = outcome.truncated;
     std::memcpy(reached_states + static_cast<size_t>(e) * k_, state, sizeof(int32_t) * k_);
     if (outcome.terminated || outcome.truncated) {
-      finished_.push_back({returns_[e], state[scenario_->step_index()], outcome.success});
-      returns_[e] = 0;
-      ++episode_count_[e];
-      scenario_->Reset(rngs_[e], state);
+      finished_.push_back({returns_[e], state[scenario_->step_index()], outcome.success, e});
+      ResetEnv(e);
     }
   }
 }

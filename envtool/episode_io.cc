@@ -1,6 +1,7 @@
 #include "envtool/episode_io.h"
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <iterator>
@@ -169,6 +170,21 @@ absl::StatusOr<std::vector<int32_t>> ParseState(absl::string_view text, const en
   return state;
 }
 
+namespace {
+
+// The shortest decimal that reads back as `value` (6 to 9 significant
+// digits), so JSON consumers get the float bit for bit.
+std::string FloatJson(float value) {
+  char text[32];
+  for (int digits = 6; digits <= 9; ++digits) {
+    std::snprintf(text, sizeof(text), "%.*g", digits, value);
+    if (std::strtof(text, nullptr) == value) break;
+  }
+  return text;
+}
+
+}  // namespace
+
 std::string StateJson(const env::Scenario& scenario, const int32_t* state, absl::Span<const int32_t> actions,
                       absl::Span<const float> rewards, const env::StepOutcome& outcome) {
   const env::GridMap& map = scenario.map();
@@ -178,7 +194,8 @@ std::string StateJson(const env::Scenario& scenario, const int32_t* state, absl:
       "{\"t\":", state[scenario.step_index()], ",\"z\":", state[env::kObjectsIndex],
       ",\"agents\":", CellsJson(map, state + 1, n),
       ",\"npcs\":", CellsJson(map, state + 1 + n, scenario.num_npcs()), ",\"actions\":[",
-      absl::StrJoin(actions, ","), "],\"rewards\":[", absl::StrJoin(rewards, ","),
+      absl::StrJoin(actions, ","), "],\"rewards\":[",
+      absl::StrJoin(rewards, ",", [](std::string* out, float r) { out->append(FloatJson(r)); }),
       "],\"terminated\":", flag(outcome.terminated), ",\"truncated\":", flag(outcome.truncated),
       ",\"success\":", flag(outcome.success),
       ",\"doors_open\":", BoolsJson(map.num_doors(), [&](int d) { return scenario.DoorOpen(state, d); }),

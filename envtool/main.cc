@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <iostream>
 #include <memory>
@@ -16,6 +17,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "common/env.h"
 #include "common/featurizer.h"
@@ -64,14 +66,19 @@ std::string Usage() {
 // JSON and adding a frame per state to the GIF, if any. Not thread-safe.
 class Episode {
  public:
+  // `annotate`, if set, returns JSON fields (",\"key\":value...") added to
+  // each state's JSON line.
+  using Annotate = std::function<std::string(const int32_t* state)>;
+
   Episode(const env::Scenario& scenario, const Renderer& renderer, std::vector<int32_t> state, uint64_t seed,
-          bool json, GifWriter* gif)
+          bool json, GifWriter* gif, Annotate annotate = nullptr)
       : scenario_(scenario),
         renderer_(renderer),
         state_(std::move(state)),
         rng_(seed),
         json_(json),
         gif_(gif),
+        annotate_(std::move(annotate)),
         rewards_(scenario.num_agents()) {}
 
   bool over() const { return outcome_.terminated || outcome_.truncated; }
@@ -94,7 +101,9 @@ class Episode {
   void Show(const std::vector<int32_t>& actions, const std::vector<float>& rewards) {
     if (gif_ != nullptr && gif_status_.ok()) gif_status_ = gif_->AddFrame(renderer_.Draw(state_.data()));
     if (json_) {
-      std::printf("%s\n", StateJson(scenario_, state_.data(), actions, rewards, outcome_).c_str());
+      std::string line = StateJson(scenario_, state_.data(), actions, rewards, outcome_);
+      if (annotate_) line.insert(line.size() - 1, annotate_(state_.data()));
+      std::printf("%s\n", line.c_str());
     } else {
       if (!actions.empty()) {
         std::vector<const char*> names;
@@ -119,6 +128,7 @@ class Episode {
   Rng rng_;
   const bool json_;
   GifWriter* const gif_;  // Null: no --gif.
+  const Annotate annotate_;
   absl::Status gif_status_;
   std::vector<float> rewards_;
   env::StepOutcome outcome_;
@@ -159,17 +169,54 @@ void Script(Episode& episode, const std::vector<std::vector<int32_t>>& steps) {
   }
 }
 
+// The action probabilities of `policy` in a state, [n][A] (the policy's
+// input is the featurizer's observation of each agent, as an actor's).
+class PolicyProbs {
+ public:
+  PolicyProbs(const env::Scenario& scenario, PolicyMlp& policy)
+      : featurizer_(scenario),
+        policy_(policy),
+        n_(scenario.num_agents()),
+        obs_(static_cast<size_t>(n_) * featurizer_.obs_dim()),
+        probs_(static_cast<size_t>(n_) * scenario.num_actions()) {}
+
+  const std::vector<float>& Of(const int32_t* state) {
+    for (int a = 0; a < n_; ++a) featurizer_.Observe(state, a, &obs_[a * featurizer_.obs_dim()]);
+    policy_.Probabilities(obs_.data(), n_, probs_.data());
+    return probs_;
+  }
+
+  // ',"probs":[[p00,...],...]' of `state`, each at float precision (%.9g).
+  std::string Json(const int32_t* state) {
+    const std::vector<float>& probs = Of(state);
+    const int a_count = static_cast<int>(probs.size()) / n_;
+    std::string out = ",\"probs\":[";
+    for (int a = 0; a < n_; ++a) {
+      absl::StrAppend(&out, a ? ",[" : "[");
+      for (int j = 0; j < a_count; ++j) {
+        absl::StrAppend(&out, j ? "," : "", absl::StrFormat("%.9g", probs[a * a_count + j]));
+      }
+      absl::StrAppend(&out, "]");
+    }
+    return out + "]";
+  }
+
+ private:
+  const env::Featurizer featurizer_;
+  PolicyMlp& policy_;
+  const int n_;
+  std::vector<float> obs_;
+  std::vector<float> probs_;
+};
+
 // One episode with actions sampled from `policy`, as an actor would.
-void Rollout(Episode& episode, const env::Scenario& scenario, PolicyMlp& policy, uint64_t seed) {
-  const env::Featurizer featurizer(scenario);
+void Rollout(Episode& episode, const env::Scenario& scenario, PolicyProbs& policy, uint64_t seed) {
   const int n = scenario.num_agents(), a_count = scenario.num_actions();
-  std::vector<float> obs(static_cast<size_t>(n) * featurizer.obs_dim()), probs(n * a_count);
   std::vector<int32_t> actions(n);
   Rng rng(seed * 7919 + 17);
   episode.Start();
   while (!episode.over()) {
-    for (int a = 0; a < n; ++a) featurizer.Observe(episode.state(), a, &obs[a * featurizer.obs_dim()]);
-    policy.Probabilities(obs.data(), n, probs.data());
+    const std::vector<float>& probs = policy.Of(episode.state());
     for (int a = 0; a < n; ++a) actions[a] = SampleCategorical(&probs[a * a_count], a_count, rng.UniformDouble());
     episode.Step(actions);
   }
@@ -251,11 +298,17 @@ int Main(const std::vector<char*>& args) {
   const bool json = absl::GetFlag(FLAGS_json);
   // The episode's draws start afresh from the seed, so --state holding the
   // state this Reset made replays the same episode.
-  Episode episode(scenario, *renderer, std::move(state), seed, json, gif.get());
+  std::optional<PolicyProbs> probs;
+  Episode::Annotate annotate;
+  if (policy) {
+    probs.emplace(scenario, *policy);
+    annotate = [&probs](const int32_t* state) { return probs->Json(state); };
+  }
+  Episode episode(scenario, *renderer, std::move(state), seed, json, gif.get(), std::move(annotate));
   if (command == "play") {
     Play(episode, scenario, json);
   } else if (command == "rollout") {
-    Rollout(episode, scenario, *policy, seed);
+    Rollout(episode, scenario, *probs, seed);
   } else {
     Script(episode, steps);
   }
