@@ -99,6 +99,7 @@ class Policy:
             raise ValueError(f"policy: obs_dim {proto.obs_dim} and num_actions {proto.num_actions} must be >= 1")
         if not 0 <= proto.agent_networks <= 1024:
             raise ValueError(f"policy.agent_networks is {proto.agent_networks}, expected 0 (shared) or 1..1024")
+        self._proto = proto
         self.version = proto.version
         self.architecture = proto.architecture
         self.obs_dim = proto.obs_dim
@@ -155,6 +156,15 @@ class Policy:
         n = getattr(env, "num_agents", None)
         if self.agent_networks not in (0, n):
             raise ValueError(f"policy: networks for {self.agent_networks} agents, the scenario has {n}")
+
+    def to_bytes(self):
+        """The serialized imca.v1.Policy (what policy.pb holds)."""
+        return self._proto.SerializeToString()
+
+    def save(self, path):
+        """Writes the policy as a policy.pb (imca_env rollout --policy plays it)."""
+        with open(os.fspath(path), "wb") as f:
+            f.write(self.to_bytes())
 
     def __repr__(self):
         return (f"imca.Policy(version={self.version}, architecture={self.architecture!r}, obs_dim={self.obs_dim}, "
