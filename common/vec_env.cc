@@ -10,10 +10,10 @@ VecEnv::VecEnv(const Scenario* scenario, int num_envs, uint64_t seed)
       n_(scenario->num_agents()),
       k_(scenario->state_size()),
       states_(static_cast<size_t>(num_envs) * k_),
-      episode_count_(num_envs, 0),
+      episode_count_(num_envs, -1),  // Reseed starts episode 0.
       returns_(num_envs, 0.0f) {
   rngs_.resize(num_envs);
-  SeedAll(seed, nullptr);
+  Reseed(seed);
   finished_.reserve(num_envs * 2);
 }
 
@@ -23,11 +23,6 @@ uint64_t VecEnv::EnvSeed(uint64_t seed, int e) {
 }
 
 void VecEnv::Reseed(uint64_t seed, const int32_t* states) {
-  SeedAll(seed, states);
-  for (int e = 0; e < num_envs_; ++e) StartEpisode(e);
-}
-
-void VecEnv::SeedAll(uint64_t seed, const int32_t* states) {
   for (int e = 0; e < num_envs_; ++e) {
     rngs_[e].Seed(EnvSeed(seed, e));
     int32_t* state = &states_[static_cast<size_t>(e) * k_];
@@ -36,6 +31,7 @@ void VecEnv::SeedAll(uint64_t seed, const int32_t* states) {
     } else {
       scenario_->Reset(rngs_[e], state);
     }
+    StartEpisode(e);
   }
 }
 

@@ -55,9 +55,6 @@ class VecEnv {
   void ResetEnv(int e);
 
  private:
-  // Seeds env e's Rng from EnvSeed(seed, e) and sets its state (a Reset draw,
-  // or states[e]).
-  void SeedAll(uint64_t seed, const int32_t* states);
   // A new episode id and a zero return for env e.
   void StartEpisode(int e);
 

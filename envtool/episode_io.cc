@@ -170,10 +170,6 @@ absl::StatusOr<std::vector<int32_t>> ParseState(absl::string_view text, const en
   return state;
 }
 
-namespace {
-
-// The shortest decimal that reads back as `value` (6 to 9 significant
-// digits), so JSON consumers get the float bit for bit.
 std::string FloatJson(float value) {
   char text[32];
   for (int digits = 6; digits <= 9; ++digits) {
@@ -182,8 +178,6 @@ std::string FloatJson(float value) {
   }
   return text;
 }
-
-}  // namespace
 
 std::string StateJson(const env::Scenario& scenario, const int32_t* state, absl::Span<const int32_t> actions,
                       absl::Span<const float> rewards, const env::StepOutcome& outcome) {

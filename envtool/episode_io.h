@@ -48,6 +48,10 @@ absl::StatusOr<std::vector<int32_t>> ParseState(absl::string_view text, const en
 std::string StateJson(const env::Scenario& scenario, const int32_t* state, absl::Span<const int32_t> actions,
                       absl::Span<const float> rewards, const env::StepOutcome& outcome);
 
+// The shortest decimal (6 to 9 significant digits) that reads back as
+// `value`, so JSON consumers get the float bit for bit.
+std::string FloatJson(float value);
+
 // `text` as a JSON string literal, quotes included.
 std::string JsonString(absl::string_view text);
 

@@ -1,6 +1,7 @@
 // imca_env: renders, plays and scripts environments (docs/envtool.md).
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -17,7 +18,6 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "common/env.h"
 #include "common/featurizer.h"
@@ -177,16 +177,21 @@ class PolicyProbs {
       : featurizer_(scenario),
         policy_(policy),
         n_(scenario.num_agents()),
+        state_size_(scenario.state_size()),
         obs_(static_cast<size_t>(n_) * featurizer_.obs_dim()),
         probs_(static_cast<size_t>(n_) * scenario.num_actions()) {}
 
+  // The probabilities in `state` (computed once per state: a rollout's JSON
+  // line and its next actions ask for the same).
   const std::vector<float>& Of(const int32_t* state) {
+    if (!last_.empty() && std::equal(last_.begin(), last_.end(), state)) return probs_;
     for (int a = 0; a < n_; ++a) featurizer_.Observe(state, a, &obs_[a * featurizer_.obs_dim()]);
     policy_.Probabilities(obs_.data(), n_, probs_.data());
+    last_.assign(state, state + state_size_);
     return probs_;
   }
 
-  // ',"probs":[[p00,...],...]' of `state`, each at float precision (%.9g).
+  // ',"probs":[[p00,...],...]' of `state`, each read back bit for bit (FloatJson).
   std::string Json(const int32_t* state) {
     const std::vector<float>& probs = Of(state);
     const int a_count = static_cast<int>(probs.size()) / n_;
@@ -194,7 +199,7 @@ class PolicyProbs {
     for (int a = 0; a < n_; ++a) {
       absl::StrAppend(&out, a ? ",[" : "[");
       for (int j = 0; j < a_count; ++j) {
-        absl::StrAppend(&out, j ? "," : "", absl::StrFormat("%.9g", probs[a * a_count + j]));
+        absl::StrAppend(&out, j ? "," : "", FloatJson(probs[a * a_count + j]));
       }
       absl::StrAppend(&out, "]");
     }
@@ -205,8 +210,10 @@ class PolicyProbs {
   const env::Featurizer featurizer_;
   PolicyMlp& policy_;
   const int n_;
+  const int state_size_;
   std::vector<float> obs_;
   std::vector<float> probs_;
+  std::vector<int32_t> last_;  // The state probs_ are of (empty: none yet).
 };
 
 // One episode with actions sampled from `policy`, as an actor would.

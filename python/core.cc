@@ -206,11 +206,16 @@ class Env {
     py::array actions = IntegerArray(actions_obj, "actions", shape);
     const int64_t count = static_cast<int64_t>(E_) * n_;
     const int64_t a_count = scenario_->num_actions();
-    const bool direct = actions.dtype().is(py::dtype::of<int32_t>()) &&
-                        (actions.flags() & py::array::c_style) != 0;
+    // int32 (read in place) and int64 (numpy's default) C-contiguous arrays
+    // are read directly; any other integer layout element by element.
+    const bool contiguous = (actions.flags() & py::array::c_style) != 0;
+    const bool direct = contiguous && actions.dtype().is(py::dtype::of<int32_t>());
+    const int64_t* wide = contiguous && actions.dtype().is(py::dtype::of<int64_t>())
+                              ? static_cast<const int64_t*>(actions.data())
+                              : nullptr;
     const int32_t* chosen = direct ? static_cast<const int32_t*>(actions.data()) : actions_.data();
     for (int64_t i = 0; i < count; ++i) {
-      const int64_t u = direct ? chosen[i] : IntegerAt(actions, i);
+      const int64_t u = direct ? chosen[i] : wide != nullptr ? wide[i] : IntegerAt(actions, i);
       if (u < 0 || u >= a_count) {
         throw py::value_error(absl::StrCat(IndexText("actions", i, shape), " = ", u, " is not in [0, ", a_count,
                                            ")"));

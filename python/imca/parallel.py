@@ -51,10 +51,8 @@ class ParallelEnv(_Base):
         self.possible_agents = [f"agent_{a}" for a in range(c.num_agents)]
         self.agents = []
         self._index = {agent: a for a, agent in enumerate(self.possible_agents)}
-        self._observation_spaces = {a: Box(0.0, 1.0, (c.obs_dim,), np.float32) for a in self.possible_agents}
-        self._action_spaces = {a: Discrete(c.num_actions) for a in self.possible_agents}
-        self.observation_spaces = self._observation_spaces
-        self.action_spaces = self._action_spaces
+        self.observation_spaces = {a: Box(0.0, 1.0, (c.obs_dim,), np.float32) for a in self.possible_agents}
+        self.action_spaces = {a: Discrete(c.num_actions) for a in self.possible_agents}
         self.state_space = Box(0.0, 1.0, (c.global_dim,), np.float32)
         self._state = c.states()[0]
         self._actions = np.zeros((1, c.num_agents), np.int32)
@@ -68,10 +66,10 @@ class ParallelEnv(_Base):
         return len(self.possible_agents)
 
     def observation_space(self, agent):
-        return self._observation_spaces[self._agent(agent, "agent")]
+        return self.observation_spaces[self._agent(agent)]
 
     def action_space(self, agent):
-        return self._action_spaces[self._agent(agent, "agent")]
+        return self.action_spaces[self._agent(agent)]
 
     def reset(self, seed=None, options=None):
         """(observations, infos), each keyed by every agent."""
@@ -83,7 +81,7 @@ class ParallelEnv(_Base):
         if seed is not None:
             seed = _env.check_seed(seed)
             for agent in self.possible_agents:  # Spaces sample reproducibly too.
-                self._action_spaces[agent].seed(seed + self._index[agent])
+                self.action_spaces[agent].seed(seed + self._index[agent])
         obs, info = self._core.reset(seed)
         self._state = info["state"][0]
         self.agents = list(self.possible_agents)
@@ -110,11 +108,12 @@ class ParallelEnv(_Base):
             if not 0 <= int(u) < self._core.num_actions:
                 raise ValueError(f"actions[{agent!r}]: {int(u)} is not in [0, {self._core.num_actions})")
             self._actions[0, self._index[agent]] = int(u)
-        _, rewards, terminated, truncated, info = self._core.step(self._actions)
+        obs, rewards, terminated, truncated, info = self._core.step(self._actions)
         self._state = info["final_state"][0]  # No auto-reset: the episode's own last state.
         live = self.agents
-        obs = self._core.observe(self._state)
         done_term, done_trunc = bool(terminated[0]), bool(truncated[0])
+        # The core has reset an ended episode; its last observations are of the final state.
+        obs = self._core.observe(self._state) if done_term or done_trunc else obs[0]
         observations = {a: obs[self._index[a]] for a in live}
         rew = {a: float(rewards[0, self._index[a]]) for a in live}
         terminations = {a: done_term for a in live}
@@ -149,9 +148,9 @@ class ParallelEnv(_Base):
     def _per_agent(self, obs):
         return {a: obs[self._index[a]] for a in self.possible_agents}
 
-    def _agent(self, agent, name):
+    def _agent(self, agent):
         if agent not in self._index:
-            raise KeyError(f"{name}: {agent!r} is not one of {self.possible_agents}")
+            raise KeyError(f"agent: {agent!r} is not one of {self.possible_agents}")
         return agent
 
     def __repr__(self):

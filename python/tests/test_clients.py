@@ -97,7 +97,6 @@ def test_the_servers_refusals_come_back_as_service_errors(servers):
     assert raised.value.code == "INVALID_ARGUMENT" and "states" in raised.value.details
     with pytest.raises(imca.ServiceError, match="fingerprint"):
         client.score(*rollout(env, 2, seed=4)[:3], env=imca.make(SCENARIO, 1, step_limit=7))
-    client.retries = 0
     dead = imca.RewardClient("127.0.0.1:1", retries=0, timeout=2)
     with pytest.raises(imca.ServiceError) as raised:
         dead.stats()
