@@ -13,7 +13,9 @@ steps = 2048 joint steps per iteration, 4 epochs of 4 minibatches, lr 1e-3
 with separate actor and critic Adam optimisers, clip 0.2, entropy 0.01,
 gamma 0.99 (both heads), GAE lambda 0.95, 64-wide tanh MLPs, a shared
 actor on each agent's observation and a critic on the global state plus the
-agent id with an extrinsic and an intrinsic head. It prints one line per
+agent id with an extrinsic and an intrinsic head, value targets normalised
+by running moments per head and advantages over the whole batch
+(docs/learner.md). It prints one line per
 iteration and stops at --target success over the last 200 episodes.
 --save writes the actor as a policy.pb that imca.load_policy and imca_env
 rollout play.
@@ -61,6 +63,33 @@ def gae(rewards, values, last_values, terminated, truncated, bootstrap, gamma, l
         running = delta + gamma * lam * torch.where(ended, torch.zeros_like(running), running)
         adv[t] = running
     return adv
+
+
+class RunningMoments:
+    """Running mean and population variance per value head, merged batch by
+    batch (Chan et al.), from a pseudo-sample of count 1e-4 (nn/running_moments.h)."""
+
+    def __init__(self, heads):
+        self.mean = torch.zeros(heads, dtype=torch.float64)
+        self.var = torch.ones(heads, dtype=torch.float64)
+        self.count = 1e-4
+
+    def update(self, x):  # [..., heads]
+        x = x.reshape(-1, x.shape[-1]).double()
+        n, mean, var = x.shape[0], x.mean(0), x.var(0, unbiased=False)
+        total, delta = self.count + n, mean - self.mean
+        self.mean = self.mean + delta * n / total
+        self.var = (self.var * self.count + var * n + delta ** 2 * self.count * n / total) / total
+        self.count = total
+
+    def std(self):
+        return self.var.clamp_min(1e-4).sqrt()
+
+    def normalise(self, x):
+        return ((x.double() - self.mean) / self.std()).float()
+
+    def denormalise(self, x):
+        return (x.double() * self.std() + self.mean).float()
 
 
 def save_policy(actor, obs_dim, num_actions, version, path):
@@ -124,10 +153,12 @@ def main():
     critic_opt = torch.optim.Adam(critic.parameters(), lr=args.lr, eps=1e-5)
     agent_ids = torch.eye(n).expand(E, n, n)
 
-    def values_of(global_states):  # [..., E, G] -> [..., E, n, 2]
+    value_norm = RunningMoments(2)
+
+    def values_of(global_states):  # [..., E, G] -> [..., E, n, 2], denormalised
         g = torch.as_tensor(global_states)
         ids = agent_ids.expand(*g.shape[:-1], n, n)
-        return critic(torch.cat([g[..., None, :].expand(*g.shape[:-1], n, G), ids], -1))
+        return value_norm.denormalise(critic(torch.cat([g[..., None, :].expand(*g.shape[:-1], n, G), ids], -1)))
 
     obs, info = env.reset(seed=args.seed)
     rng = np.random.default_rng(args.seed)
@@ -171,19 +202,21 @@ def main():
             adv_int = gae(torch.as_tensor(scored.agent_rewards), values[..., 1], last_values[..., 1], term, trunc,
                           bootstrap[..., 1], 0.99, 0.95)
             returns = torch.stack([adv_ext + values[..., 0], adv_int + values[..., 1]], -1)
+            value_norm.update(returns)
             adv = adv_ext + adv_int
+            adv = ((adv.double() - adv.double().mean()) / (adv.double().std(unbiased=False) + 1e-8)).float()
             old_logp = torch.log(torch.as_tensor(stack["probs"]).gather(
                 -1, torch.as_tensor(stack["actions"])[..., None]).squeeze(-1).clamp_min(1e-12))
         flat = {"obs": torch.as_tensor(stack["obs"]).reshape(-1, D),
                 "critic_in": torch.cat([torch.as_tensor(stack["global"])[..., None, :].expand(T, E, n, G),
                                         agent_ids.expand(T, E, n, n)], -1).reshape(-1, G + n),
                 "actions": torch.as_tensor(stack["actions"]).reshape(-1).long(),
-                "old_logp": old_logp.reshape(-1), "adv": adv.reshape(-1), "returns": returns.reshape(-1, 2)}
+                "old_logp": old_logp.reshape(-1), "adv": adv.reshape(-1),
+                "targets": value_norm.normalise(returns).reshape(-1, 2)}
         B = flat["adv"].shape[0]
         for _ in range(4):
             for idx in torch.randperm(B).chunk(4):
                 a = flat["adv"][idx]
-                a = (a - a.mean()) / (a.std() + 1e-8)
                 dist = torch.distributions.Categorical(logits=actor(flat["obs"][idx]))
                 ratio = torch.exp(dist.log_prob(flat["actions"][idx]) - flat["old_logp"][idx])
                 policy_loss = -torch.min(ratio * a, ratio.clamp(0.8, 1.2) * a).mean()
@@ -192,7 +225,7 @@ def main():
                 actor_loss.backward()
                 nn.utils.clip_grad_norm_(actor.parameters(), 0.5)
                 actor_opt.step()
-                value_loss = 0.5 * (critic(flat["critic_in"][idx]) - flat["returns"][idx]).pow(2).sum(-1).mean()
+                value_loss = 0.5 * (critic(flat["critic_in"][idx]) - flat["targets"][idx]).pow(2).sum(-1).mean()
                 critic_opt.zero_grad()
                 value_loss.backward()
                 nn.utils.clip_grad_norm_(critic.parameters(), 0.5)

@@ -2,6 +2,7 @@
 // 64 steps x 32 envs per call) for count, RND and SF with 2 agents (coop_nav)
 // and 4 agents (predator_prey), and the share of time imca's counterfactuals
 // add (1 - time(shared) / time(imca), same kind and scenario). Medians.
+//   bench_reward [ROUNDS [KIND SCENARIO]]  (with KIND and SCENARIO: that row alone)
 #include <unistd.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "common/env.h"
@@ -31,7 +33,12 @@ double Throughput(const std::string& kind, const env::Scenario& scenario, reward
                   Journal journal = Journal::kOff) {
   reward::ScorerConfig config;
   config.credit = credit;
-  std::unique_ptr<reward::Scorer> scorer = *reward::MakeScorer(kind, scenario, config);
+  auto made = reward::MakeScorer(kind, scenario, config);
+  if (!made.ok()) {
+    std::fprintf(stderr, "bench_reward: %s\n", std::string(made.status().message()).c_str());
+    return 0;
+  }
+  std::unique_ptr<reward::Scorer> scorer = *std::move(made);
   const std::string dir = "/tmp/bench_reward_" + std::to_string(getpid());
   if (journal != Journal::kOff) {
     std::filesystem::remove_all(dir);
@@ -72,21 +79,35 @@ double Throughput(const std::string& kind, const env::Scenario& scenario, reward
 int main(int argc, char** argv) {
   using namespace imca;
   const int rounds = argc > 1 ? std::max(3, std::atoi(argv[1])) : 5;
+  if (argc != 2 && argc != 4 && argc != 1) {
+    std::fprintf(stderr, "usage: bench_reward [ROUNDS [KIND SCENARIO]]\n");
+    return 2;
+  }
+  const bool one_row = argc == 4;
+  const std::vector<std::string> kinds = one_row ? std::vector<std::string>{argv[2]}
+                                                 : std::vector<std::string>{"count", "rnd", "sf"};
+  const std::vector<std::string> names = one_row ? std::vector<std::string>{argv[3]}
+                                                 : std::vector<std::string>{"coop_nav", "predator_prey"};
   std::printf("%-6s %-14s %6s %18s %18s %16s\n", "kind", "scenario", "agents", "imca_trans/s", "shared_trans/s",
               "counterfactuals");
-  for (const char* name : {"coop_nav", "predator_prey"}) {
+  for (const std::string& name : names) {
     env::ScenarioConfig config;
     config.name = name;
     auto scenario = env::MakeScenario(config, env::DefaultMapDir());
-    if (!scenario.ok()) return 1;
-    for (const char* kind : {"count", "rnd", "sf"}) {
+    if (!scenario.ok()) {
+      std::fprintf(stderr, "bench_reward: %s\n", std::string(scenario.status().message()).c_str());
+      return 2;
+    }
+    for (const std::string& kind : kinds) {
       const double imca = Throughput(kind, **scenario, reward::Credit::kImca, rounds);
       const double shared = Throughput(kind, **scenario, reward::Credit::kShared, rounds);
-      std::printf("%-6s %-14s %6d %18.0f %18.0f %15.0f%%\n", kind, name, (*scenario)->num_agents(), imca, shared,
-                  100.0 * (1.0 - imca / shared));
+      if (imca == 0 || shared == 0) return 1;
+      std::printf("%-6s %-14s %6d %18.0f %18.0f %15.0f%%\n", kind.c_str(), name.c_str(), (*scenario)->num_agents(),
+                  imca, shared, 100.0 * (1.0 - imca / shared));
       std::fflush(stdout);
     }
   }
+  if (one_row) return 0;
   // The count journal's cost (docs/reliability.md): imca credit, no journal,
   // the journal written before each answer, and fdatasync'ed as well.
   std::printf("\n%-6s %-14s %14s %14s %14s %9s %9s\n", "kind", "scenario", "off_trans/s", "journal_trans/s",

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""./imca bench speed|env|reward|learn: benchmarks run by hand (never in CI).
+"""./imca bench speed|env|reward|learn|soak|drill|python: benchmarks run by hand (never in CI).
 
 speed  component ceilings (bench_speed) and end-to-end training throughput,
        with the ratio end-to-end / learner-only.
@@ -17,6 +17,12 @@ learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds
        an ablation: every variant x credit x seed, and a table of medians of
        env steps and wall-clock to 90% success. --out DIR resumes: finished
        runs in DIR are read, not rerun.
+python the Python package against the C++ it wraps, in one run: joint env
+       steps/s of imca.make against bench_env at 64, 256 and 1024 envs; Score
+       round trips/s and transitions/s of imca.RewardClient against a reward
+       server; and examples/python_mappo.py against ./imca train (same PPO
+       settings, count IMCA on coop_nav) to 90% success over the last 200
+       training episodes, per seed.
 """
 import argparse
 import csv
@@ -172,6 +178,8 @@ def ablation_table(args, variants, modes, seeds, results):
 
 def learn(args, base):
     modes = args.credits.split(",")
+
+def python_train_bench(args, base):
     seeds = [int(s) for s in args.seeds.split(",")]
     variants = load_variants(args.variants) if args.variants else [("default", [])]
     results = {}
@@ -391,6 +399,155 @@ def drill(args, base):
     print(f"run folders: {base}")
 
 
+def median_rate(work, count, rounds):
+    """Median of count / seconds over `rounds` timed calls of work()."""
+    rates = []
+    for _ in range(rounds):
+        start = time.perf_counter()
+        work()
+        rates.append(count / (time.perf_counter() - start))
+    return statistics.median(rates)
+
+
+def start_reward_server(base, scenario):
+    """(process, address) of a count/imca reward server on a free loopback port."""
+    port_file = os.path.join(base, "reward_server.port")
+    log = open(os.path.join(base, "reward_server.log"), "w")
+    proc = subprocess.Popen([os.path.join(BIN, "reward_server"), f"--scenario={scenario}", "--reward=count",
+                             "--credit=imca", "--listen=127.0.0.1:0", f"--port_file={port_file}"],
+                            stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.time() + 30
+    while not (os.path.exists(port_file) and open(port_file).read().strip()):
+        if proc.poll() is not None or time.time() > deadline:
+            sys.exit(f"imca bench: the reward server did not start (log: {log.name})")
+        time.sleep(0.05)
+    return proc, f"127.0.0.1:{open(port_file).read().strip()}"
+
+
+def python_bench(args, base):
+    sys.path.insert(0, os.path.join(ROOT, "python"))
+    parts = args.parts.split(",")
+    unknown = set(parts) - {"env", "score", "train"}
+    if unknown:
+        sys.exit(f"imca bench python: --parts: unknown part(s) {', '.join(sorted(unknown))} (env, score, train)")
+    sizes = [int(x) for x in args.envs.split(",")]
+    if "env" in parts:
+        python_env_bench(args, sizes)
+    if "score" in parts:
+        python_score_bench(args, base)
+    if "train" in parts:
+        python_train_bench(args, base)
+
+
+def python_env_bench(args, sizes):
+    import numpy as np
+    import imca
+    print(f"== joint env steps/s, one core: imca.make from Python against bench_env (C++), medians of "
+          f"{args.rounds} rounds of 2000 steps; uniform random actions drawn beforehand ==", flush=True)
+    r = subprocess.run([os.path.join(BIN, "bench_env"), str(args.rounds)] + [str(e) for e in sizes],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"imca bench: bench_env failed: {r.stderr.strip()}")
+    # Python's step featurises too: compare with C++'s step + featurise.
+    cxx = {(w[0], int(w[2])): (float(w[3]), float(w[5]))
+           for w in (line.split() for line in r.stdout.splitlines()[1:])}
+    print("| scenario | agents | envs | C++ step | C++ step + featurise | Python step (+ featurise) "
+          "| Python / C++ (same work) |")
+    print("|---|---|---|---|---|---|---|")
+    for scenario in imca.scenarios():
+        for E in sizes:
+            env = imca.make(scenario, num_envs=E, seed=1)
+            env.reset()
+            pool = np.random.default_rng(5).integers(0, env.num_actions, (64, E, env.num_agents), dtype=np.int32)
+            def steps(env=env, pool=pool):
+                for t in range(2000):
+                    env.step(pool[t % 64])
+            rate = median_rate(steps, 2000 * E, args.rounds)
+            bare, featurised = cxx[(scenario, E)]
+            print(f"| {scenario} | {env.num_agents} | {E} | {bare:,.0f} | {featurised:,.0f} | {rate:,.0f} "
+                  f"| {rate / featurised:.2f} |", flush=True)
+
+
+def python_score_bench(args, base):
+    import numpy as np
+    import imca
+    print(f"\n== Score from Python: imca.RewardClient against reward_server (coop_nav, count, imca) on "
+          f"loopback; medians of {args.rounds} rounds ==", flush=True)
+    r = subprocess.run([os.path.join(BIN, "bench_reward"), str(args.rounds), "count", "coop_nav"],
+                       capture_output=True, text=True, env=dict(os.environ, OMP_WAIT_POLICY="passive"))
+    if r.returncode != 0:
+        sys.exit(f"imca bench: bench_reward failed: {r.stderr.strip()}")
+    cxx = float(r.stdout.splitlines()[1].split()[3])
+    server, address = start_reward_server(base, "coop_nav")
+    try:
+        client = imca.RewardClient(address, actor_id="bench-python")
+        print("| client | steps x envs per call | round trips/s | transitions/s |")
+        print("|---|---|---|---|")
+        print(f"| C++ (bench_reward, server in its process) | 64 x 32 | {cxx / 2048:,.0f} | {cxx:,.0f} |")
+        for T, E in ((1, 1), (32, 64), (64, 32)):
+            env = imca.make("coop_nav", num_envs=E, seed=2)
+            obs, info = env.reset()
+            rng = np.random.default_rng(3)
+            states, actions = [info["state"]], []
+            for t in range(T):
+                actions.append(rng.integers(0, env.num_actions, (E, env.num_agents)))
+                states.append(env.step(actions[-1])[4]["state"])
+            states, actions = np.stack(states), np.stack(actions)
+            probs = np.full(actions.shape + (env.num_actions,), 1 / env.num_actions, np.float32)
+            calls = max(5, min(2000, 20000 // (T * E)))
+            def score():
+                for _ in range(calls):
+                    client.score(states, actions, probs, env=env)
+            rate = median_rate(score, calls, args.rounds)
+            print(f"| Python (imca.RewardClient) | {T} x {E} | {rate:,.0f} | {rate * T * E:,.0f} |", flush=True)
+        client.close()
+    finally:
+        server.terminate()
+        server.wait()
+
+
+def python_train_bench(args, base):
+    seeds = [int(s) for s in args.seeds.split(",")]
+    print(f"\n== coop_nav, count IMCA, to 90% success over the last 200 training episodes "
+          f"(budget {args.steps:,} env steps; seeds {args.seeds}) ==", flush=True)
+    results = {"python_mappo": [], "./imca train": []}
+    for seed in seeds:
+        log_path = os.path.join(base, f"python_mappo-seed{seed}.log")
+        with open(log_path, "w") as log:
+            p = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "python_mappo.py"), "--seed", str(seed),
+                                "--steps", str(args.steps)], stdout=log, stderr=subprocess.STDOUT)
+        lines = open(log_path).read().splitlines()
+        if p.returncode != 0:
+            sys.exit(f"imca bench: python_mappo failed (log: {log_path})")
+        reached = [l.split() for l in lines if l.startswith("reached ")]
+        last = [l.split() for l in lines if l.startswith("iteration ")][-1]
+        rate = float(last[last.index("steps/s") + 1])
+        steps90, wall90 = (int(reached[0][4]), float(reached[0][7])) if reached else (None, None)
+        results["python_mappo"].append((steps90, wall90, rate))
+        print(f"python_mappo  seed {seed}: to 90% {steps90} env steps / {wall90} s, {rate:,.0f} env steps/s",
+              flush=True)
+        # ./imca train runs its whole budget; the rows say when 90% was reached.
+        summary, rows = train(os.path.join(base, f"imca_train-seed{seed}"),
+                              ["--seed", str(seed), "--steps", str(args.steps)])
+        steps90, wall90 = to_90(rows, "train_success_rate")
+        rate = int(rows[-1]["env_steps"]) / float(rows[-1]["wall_seconds"])
+        results["./imca train"].append((steps90, wall90, rate))
+        print(f"./imca train seed {seed}: to 90% {steps90} env steps / {wall90} s, {rate:,.0f} env steps/s",
+              flush=True)
+    fmt = lambda x: "-" if x is None else f"{x / 1e6:.2f}M"
+    print("| trainer | env steps to 90%: median (per seed) | reached | wall-clock to 90%: median (per seed) "
+          "| env steps/s: median |")
+    print("|---|---|---|---|---|")
+    for name, runs in results.items():
+        wall = median_reached([w for _, w, _ in runs])
+        print(f"| {name} | {fmt(median_reached([s for s, _, _ in runs]))} ({' / '.join(fmt(s) for s, _, _ in runs)}) "
+              f"| {sum(s is not None for s, _, _ in runs)}/{len(runs)} "
+              f"| {'-' if wall is None else f'{wall:.1f} s'} "
+              f"({' / '.join('-' if w is None else f'{w:.0f} s' for _, w, _ in runs)}) "
+              f"| {statistics.median(r for _, _, r in runs):,.0f} |")
+    print(f"run folders and logs: {base}")
+
+
 def main(argv):
     p = argparse.ArgumentParser(prog="imca bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -426,6 +583,12 @@ def main(argv):
     l.add_argument("--variants", default="", help="JSON file {name: {train flag: value}}: an ablation")
     l.add_argument("--out", default="", help="run folder (reruns skip its finished runs)")
     l.add_argument("extra", nargs="*", help="after --: more ./imca train flags, e.g. -- --beta 0.1")
+    py = sub.add_parser("python")
+    py.add_argument("--rounds", type=int, default=7)
+    py.add_argument("--parts", default="env,score,train", help="which comparisons (env, score, train)")
+    py.add_argument("--envs", default="64,256,1024", help="env counts of the env comparison")
+    py.add_argument("--seeds", default="1,2,3")
+    py.add_argument("--steps", type=int, default=2_000_000, help="training budget in env steps")
     args = p.parse_args(argv)
     if args.what not in ("learn", "soak", "drill"):
         args.extra = []
@@ -435,7 +598,7 @@ def main(argv):
     base = os.path.abspath(base)
     os.makedirs(base, exist_ok=True)
     {"speed": speed, "env": env_bench, "reward": reward_bench, "learn": learn, "soak": soak,
-     "drill": drill}[args.what](args, base)
+     "drill": drill, "python": python_bench}[args.what](args, base)
 
 
 if __name__ == "__main__":
