@@ -24,8 +24,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr int kCheckpointsKept = 3;
-
 template <typename T>
 void PushWindow(std::deque<T>* window, T value, int limit) {
   window->push_back(value);
@@ -41,26 +39,6 @@ double Mean(const std::deque<T>& values) {
 }
 
 int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); }
-
-// Drops the rows of a CSV file whose first column (the iteration) is above
-// `iteration`: iterations a restarted learner rolled back to its checkpoint
-// and trains again. The header and other rows stay; written atomically.
-absl::Status DropRowsAfter(const fs::path& path, int64_t iteration) {
-  std::ifstream in(path);
-  if (!in) return absl::OkStatus();
-  std::string kept, line;
-  bool dropped = false, first = true;
-  while (std::getline(in, line)) {
-    int64_t row_iteration = 0;
-    if (!first && absl::SimpleAtoi(line.substr(0, line.find(',')), &row_iteration) && row_iteration > iteration) {
-      dropped = true;
-      continue;
-    }
-    first = false;
-    absl::StrAppend(&kept, line, "\n");
-  }
-  return dropped ? WriteFileAtomically(path.string(), kept) : absl::OkStatus();
-}
 
 }  // namespace
 
@@ -208,6 +186,13 @@ v1::Rejection RejectionOf(const absl::Status& status) {
 Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm)
     : scenario_(scenario), config_(config), algorithm_(std::move(algorithm)) {
   RegisterMetrics();
+  if (!config_.run_dir.empty()) {
+    checkpoints_.emplace((fs::path(config_.run_dir) / "checkpoints").string());
+    metrics_log_.emplace((fs::path(config_.run_dir) / "metrics.csv").string(), CsvHeader(scenario_->num_agents()));
+  }
+  if (!config_.trained_log.empty()) {
+    trained_log_.emplace(config_.trained_log, "iteration,actor_id,incarnation,sequence,policy_version");
+  }
 }
 
 void Learner::RegisterMetrics() {
@@ -591,36 +576,20 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     }
     last_intrinsic_ = credit.intrinsic;
   }
-  if (!config_.trained_log.empty()) {
+  if (trained_log_.has_value()) {
     // One row per trained unroll: what a resend or a restart could make
     // train twice, for a reader to check that it did not.
-    if (!trained_log_.is_open()) {
-      const bool fresh = !fs::exists(config_.trained_log);
-      if (!fresh) IMCA_RETURN_IF_ERROR(DropRowsAfter(config_.trained_log, iteration_ - 1));
-      trained_log_.open(config_.trained_log, std::ios::app);
-      if (fresh) trained_log_ << "iteration,actor_id,incarnation,sequence,policy_version\n";
-    }
     for (const v1::Unroll& u : unrolls) {
-      trained_log_ << iteration_ << "," << u.actor_id() << "," << absl::StrFormat("%016x", u.incarnation()) << ","
-                   << u.sequence() << "," << u.policy_version() << "\n";
-    }
-    trained_log_.flush();
-    if (!trained_log_) {
-      trained_log_.close();
-      trained_log_.clear();
-      std::fprintf(stderr, "learner: cannot write %s\n", config_.trained_log.c_str());
+      AppendRow(&*trained_log_, absl::StrFormat("%d,%s,%016x,%d,%d", iteration_, u.actor_id(), u.incarnation(),
+                                                u.sequence(), u.policy_version()));
     }
   }
   Clock::time_point lap = Clock::now();
   Publish();
   phases_.publish = Lap(lap);
-  // A metrics row that cannot be written is reported (once per run of
-  // failures) but does not stop training: the checkpoints still hold it all.
   const IterationRecord record = Record(stats, lag, credit);
   exporter_.Publish(record);
-  const absl::Status written = WriteMetricsRow(record);
-  if (!written.ok() && metrics_ok_) std::fprintf(stderr, "learner: %s\n", std::string(written.message()).c_str());
-  metrics_ok_ = written.ok();
+  if (metrics_log_.has_value()) AppendRow(&*metrics_log_, CsvRow(record));
   return absl::OkStatus();
 }
 
@@ -711,166 +680,64 @@ IterationRecord Learner::Record(const IterationStats& stats, double lag, const C
   return r;
 }
 
-absl::Status Learner::WriteMetricsRow(const IterationRecord& record) {
-  if (config_.run_dir.empty()) return absl::OkStatus();
-  if (!metrics_.is_open()) {
-    const fs::path path = fs::path(config_.run_dir) / "metrics.csv";
-    const std::string header = CsvHeader(scenario_->num_agents());
-    std::string existing;
-    if (std::ifstream in(path); in) std::getline(in, existing);
-    if (!existing.empty() && existing != header) {
-      // A resumed run written by another version: keep its rows apart
-      // rather than append rows whose columns do not match the header.
-      std::error_code error;
-      fs::rename(path, fs::path(config_.run_dir) / "metrics.old.csv", error);
-      existing.clear();
-    }
-    if (!existing.empty()) IMCA_RETURN_IF_ERROR(DropRowsAfter(path, iteration_ - 1));
-    metrics_.open(path, std::ios::app);
-    if (existing.empty()) metrics_ << header << "\n";
-  }
-  metrics_ << CsvRow(record) << "\n";
-  metrics_.flush();
-  if (!metrics_) {
-    // Reopened (and appended to) on the next row.
-    metrics_.close();
-    metrics_.clear();
-    return absl::InternalError(absl::StrCat("cannot write ", (fs::path(config_.run_dir) / "metrics.csv").string(),
-                                            ": ", std::strerror(errno)));
-  }
-  return absl::OkStatus();
+void Learner::AppendRow(CsvLog* log, absl::string_view row) {
+  const bool was_healthy = log->healthy();
+  const absl::Status written = log->Append(row);
+  if (!written.ok() && was_healthy) std::fprintf(stderr, "learner: %s\n", std::string(written.message()).c_str());
 }
 
 absl::Status Learner::SaveCheckpoint() {
   last_checkpoint_ = Clock::now();
-  if (config_.run_dir.empty()) return absl::OkStatus();
-  const fs::path dir = fs::path(config_.run_dir) / "checkpoints";
+  if (!checkpoints_.has_value()) return absl::OkStatus();
   const v1::LearnerStatus s = Status();
-  const std::string stem = absl::StrFormat("ckpt-%08d", s.policy_version());
-  // The .pt first, then its .meta: the .meta is the marker that the
-  // checkpoint is complete (NewestCheckpoint reads only checkpoints that
-  // have one), and each file is written whole or not at all.
-  IMCA_RETURN_IF_ERROR(algorithm_->Save((dir / (stem + ".pt")).string()));
-  std::string meta = absl::StrCat("version ", s.policy_version(), "\nenv_steps ", s.env_steps(), "\nwall_seconds ",
-                                  s.wall_seconds(), "\niteration ", iteration_, "\n");
+  v1::CheckpointMeta meta;
+  meta.set_version(s.policy_version());
+  meta.set_env_steps(s.env_steps());
+  meta.set_wall_seconds(s.wall_seconds());
+  meta.set_iteration(iteration_);
   {
     // The newest trained unroll of each actor incarnation, so that a
     // restarted learner still recognises resends of what it trained (and
     // takes again what was only queued: that was lost with the process).
     absl::MutexLock lock(&mu_);
     for (const auto& [actor, accepted] : trained_) {
-      absl::StrAppend(&meta, "accepted ", accepted.incarnation, " ", accepted.sequence, " ", actor, "\n");
+      v1::CheckpointMeta::Trained* trained = meta.add_trained();
+      trained->set_actor_id(actor);
+      trained->set_incarnation(accepted.incarnation);
+      trained->set_sequence(accepted.sequence);
     }
   }
-  IMCA_RETURN_IF_ERROR(WriteFileAtomically((dir / (stem + ".meta")).string(), meta));
+  IMCA_RETURN_IF_ERROR(checkpoints_->Save(meta, [this](const std::string& path) { return algorithm_->Save(path); }));
   // The newest policy as a serialized imca.v1.Policy, for tools in any language.
-  IMCA_RETURN_IF_ERROR(WriteFileAtomically((fs::path(config_.run_dir) / "policy.pb").string(),
-                                           CurrentPolicy()->SerializeAsString()));
-  std::error_code error;
-  // Keep the newest few.
-  std::vector<fs::path> metas;
-  for (const auto& entry : fs::directory_iterator(dir)) {
-    if (entry.path().extension() == ".meta") metas.push_back(entry.path());
-  }
-  std::sort(metas.begin(), metas.end());
-  for (size_t i = 0; i + kCheckpointsKept < metas.size(); ++i) {
-    fs::path pt = metas[i];
-    pt.replace_extension(".pt");
-    fs::remove(metas[i], error);
-    fs::remove(pt, error);
-  }
-  return absl::OkStatus();
-}
-
-namespace {
-
-// The complete checkpoints of `checkpoint_dir` (those with a .meta), newest
-// first. Errors: INTERNAL if it cannot be read.
-absl::StatusOr<std::vector<fs::path>> CompleteCheckpoints(const std::string& checkpoint_dir) {
-  std::vector<fs::path> metas;
-  std::error_code error;
-  for (const auto& entry : fs::directory_iterator(checkpoint_dir, error)) {
-    if (entry.path().extension() == ".meta") metas.push_back(entry.path());
-  }
-  if (error && error != std::errc::no_such_file_or_directory) {
-    // Unreadable is not "no checkpoint": starting fresh would lose the run.
-    return absl::InternalError(absl::StrCat("cannot read ", checkpoint_dir, ": ", error.message()));
-  }
-  std::sort(metas.rbegin(), metas.rend());
-  return metas;
-}
-
-}  // namespace
-
-absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir) {
-  IMCA_ASSIGN_OR_RETURN(const std::vector<fs::path> metas, CompleteCheckpoints(checkpoint_dir));
-  if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
-  return metas.front().string();
+  return WriteFileAtomically((fs::path(config_.run_dir) / "policy.pb").string(), CurrentPolicy()->SerializeAsString());
 }
 
 absl::Status Learner::Restore(const std::string& checkpoint_dir) {
-  IMCA_ASSIGN_OR_RETURN(const std::vector<fs::path> metas, CompleteCheckpoints(checkpoint_dir));
-  if (metas.empty()) return absl::NotFoundError(absl::StrCat("no checkpoint in ", checkpoint_dir));
-  absl::Status newest_error;
-  for (const fs::path& meta : metas) {
-    const absl::Status restored = RestoreFrom(meta.string());
-    if (restored.ok()) {
-      if (!newest_error.ok()) {
-        std::fprintf(stderr, "learner: restored the older checkpoint %s instead (%s)\n", meta.c_str(),
-                     std::string(newest_error.message()).c_str());
-      }
-      // The cumulative families start from the checkpoint, not from 0 (a
-      // counter's jump from 0 would read as a burst of training).
-      const v1::LearnerStatus s = Status();
-      IterationRecord record;
-      record.iteration = static_cast<double>(iteration_);
-      record.env_steps = static_cast<double>(s.env_steps());
-      record.policy_version = static_cast<double>(s.policy_version());
-      exporter_.Publish(record);
-      return absl::OkStatus();
-    }
-    // A damaged file (the disk, not a crash mid-write: every file is
-    // written atomically) costs one checkpoint interval, not the run.
-    if (newest_error.ok()) newest_error = restored;
+  IMCA_ASSIGN_OR_RETURN(const v1::CheckpointMeta meta,
+                        CheckpointStore(checkpoint_dir).Restore([this](const std::string& path) {
+                          return algorithm_->Load(path);
+                        }));
+  absl::flat_hash_map<std::string, Accepted> trained;
+  for (const v1::CheckpointMeta::Trained& t : meta.trained()) {
+    trained[t.actor_id()] = Accepted{t.incarnation(), t.sequence()};
   }
-  return newest_error;
-}
-
-absl::Status Learner::RestoreFrom(const std::string& meta_path) {
-  std::ifstream meta(meta_path);
-  int64_t version = -1, env_steps = -1, iteration = 0;
-  double wall = 0;
-  absl::flat_hash_map<std::string, Accepted> accepted;
-  for (std::string line; std::getline(meta, line);) {
-    std::istringstream fields(line);
-    std::string key;
-    fields >> key;
-    if (key == "version") fields >> version;
-    else if (key == "env_steps") fields >> env_steps;
-    else if (key == "wall_seconds") fields >> wall;
-    else if (key == "iteration") fields >> iteration;
-    else if (key == "accepted") {
-      Accepted a;
-      std::string actor;
-      if (fields >> a.incarnation >> a.sequence && fields.get() == ' ' && std::getline(fields, actor)) {
-        accepted[actor] = a;
-      }
-    }
+  iteration_ = meta.iteration();
+  {
+    absl::MutexLock lock(&mu_);
+    wall_offset_ = meta.wall_seconds();
+    version_ = meta.version();
+    env_steps_ = meta.env_steps();
+    trained_ = trained;
+    accepted_ = std::move(trained);
+    policy_ = ExportPolicy();
   }
-  if (version < 0 || env_steps < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("bad checkpoint metadata ", meta_path));
-  }
-  fs::path pt = meta_path;
-  pt.replace_extension(".pt");
-  IMCA_RETURN_IF_ERROR(algorithm_->Load(pt.string()));
-  iteration_ = iteration;
-  absl::MutexLock lock(&mu_);
-  wall_offset_ = wall;
-  version_ = version;
-  env_steps_ = env_steps;
-  trained_ = accepted;
-  accepted_ = std::move(accepted);
-  policy_ = ExportPolicy();
+  // The cumulative families start from the checkpoint, not from 0 (a
+  // counter's jump from 0 would read as a burst of training).
+  IterationRecord record;
+  record.iteration = static_cast<double>(iteration_);
+  record.env_steps = static_cast<double>(meta.env_steps());
+  record.policy_version = static_cast<double>(meta.version());
+  exporter_.Publish(record);
   return absl::OkStatus();
 }
 

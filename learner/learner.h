@@ -25,6 +25,8 @@
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 #include "learner/algorithms/interface.h"
+#include "learner/checkpoint_store.h"
+#include "learner/csv_log.h"
 #include "learner/iteration_metrics.h"
 #include "learner/learner_config.h"
 
@@ -96,9 +98,9 @@ class Learner {
   const metrics::Registry& metrics() const { return registry_; }
 
   // Restores trainer, version and counters from a checkpoint directory's
-  // newest complete checkpoint (one with its .meta), or, if that one cannot
-  // be read, from the newest older one that can. Call before Run(). Errors:
-  // NOT_FOUND (none), or the newest checkpoint's error if none loads
+  // newest complete checkpoint, or, if that one cannot be read, from the
+  // newest older one that can (CheckpointStore::Restore). Call before Run().
+  // Errors: NOT_FOUND (none), or the newest checkpoint's error if none loads
   // (INVALID_ARGUMENT: it does not fit this configuration; INTERNAL).
   absl::Status Restore(const std::string& checkpoint_dir);
   // Writes a checkpoint now (from the training thread only), and the current
@@ -123,8 +125,6 @@ class Learner {
   // RESOURCE_EXHAUSTED if the unroll's actor id would be one past
   // config_.max_actor_ids.
   absl::Status CheckActorIdRoom(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // Restore() of one checkpoint, by its .meta file.
-  absl::Status RestoreFrom(const std::string& meta_path);
   // Waits for the next queued unroll that is not stale (dropping and counting
   // stale ones); nullopt once stopping.
   std::optional<QueuedUnroll> NextUnroll();
@@ -150,8 +150,10 @@ class Learner {
   CreditStats MeasureCredit(const std::vector<v1::Unroll>& unrolls, int64_t agent_steps) const;
   // The iteration's metrics.csv row.
   IterationRecord Record(const IterationStats& stats, double lag, const CreditStats& credit) const;
-  // Appends a row to <run_dir>/metrics.csv. Errors: INTERNAL if it cannot be written.
-  absl::Status WriteMetricsRow(const IterationRecord& record);
+  // Appends `row` to `log`, reporting a failure once per run of failures:
+  // a log that cannot be written does not stop training (the checkpoints
+  // still hold it all).
+  static void AppendRow(CsvLog* log, absl::string_view row);
 
   const env::Scenario* scenario_;
   const LearnerConfig config_;
@@ -165,9 +167,11 @@ class Learner {
   std::unique_ptr<Algorithm> algorithm_;  // Training thread only (but its thread-safe Featurise).
   const uint64_t incarnation_ = RandomIncarnation();
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-  std::ofstream metrics_;                // Training thread only.
-  bool metrics_ok_ = true;               // Training thread only: the last row was written.
-  std::ofstream trained_log_;            // Training thread only.
+  // <run_dir>/checkpoints, <run_dir>/metrics.csv and config_.trained_log,
+  // where set (training thread only).
+  std::optional<CheckpointStore> checkpoints_;
+  std::optional<CsvLog> metrics_log_;
+  std::optional<CsvLog> trained_log_;
   // When the last checkpoint was written (training thread only).
   std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   int64_t iteration_ = 0;                // Training thread only.
@@ -218,11 +222,6 @@ class Learner {
   std::deque<float> train_returns_ ABSL_GUARDED_BY(mu_);
   double last_intrinsic_ ABSL_GUARDED_BY(mu_) = 0;
 };
-
-// The metadata file of checkpoint_dir's newest checkpoint, the one Restore()
-// reads. Errors: NOT_FOUND if the directory holds none (or does not exist),
-// INTERNAL if it cannot be read.
-absl::StatusOr<std::string> NewestCheckpoint(const std::string& checkpoint_dir);
 
 }  // namespace imca::learner
 

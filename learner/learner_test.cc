@@ -425,7 +425,7 @@ TEST_F(LearnerTest, CheckpointsByTimeAndFallsBackPastADamagedOne) {
   }
   // A .pt without its .meta (a crash between the two) is not a checkpoint.
   std::filesystem::copy_file(dir + "/ckpt-00000003.pt", dir + "/ckpt-00000009.pt");
-  EXPECT_EQ(NewestCheckpoint(dir).value(), dir + "/ckpt-00000003.meta");
+  EXPECT_EQ(CheckpointStore(dir).Newest().value(), dir + "/ckpt-00000003.meta");
   // A damaged newest checkpoint costs one interval, not the run.
   std::filesystem::resize_file(dir + "/ckpt-00000003.pt", 100);
   auto restarted = Learner::Create(scenario_.get(), config_);

@@ -372,20 +372,11 @@ int main(int argc, char** argv) {
   if (max_streams < 1) return Fail("--max_streams must be >= 1");
   auto learner = learner::Learner::Create(scenario->get(), config);
   if (!learner.ok()) return Fail(std::string(learner.status().message()));
-  std::string resume = absl::GetFlag(FLAGS_resume);
-  if (absl::GetFlag(FLAGS_auto_resume)) {
-    if (!resume.empty()) return Fail("--auto_resume and --resume exclude each other");
-    if (config.run_dir.empty()) return Fail("--auto_resume needs --run_dir");
-    const std::string checkpoints = (std::filesystem::path(config.run_dir) / "checkpoints").string();
-    const absl::StatusOr<std::string> newest = learner::NewestCheckpoint(checkpoints);
-    if (newest.ok()) {
-      resume = checkpoints;
-    } else if (!absl::IsNotFound(newest.status())) {
-      return Fail(absl::StrCat("--auto_resume: ", newest.status().message()));
-    }
-  }
-  if (!resume.empty()) {
-    if (absl::Status restored = (*learner)->Restore(resume); !restored.ok()) {
+  const absl::StatusOr<std::string> resume =
+      learner::ResumeFolder(absl::GetFlag(FLAGS_resume), absl::GetFlag(FLAGS_auto_resume), config.run_dir);
+  if (!resume.ok()) return Fail(std::string(resume.status().message()));
+  if (!resume->empty()) {
+    if (absl::Status restored = (*learner)->Restore(*resume); !restored.ok()) {
       return Fail(absl::StrCat("--resume: ", restored.message()));
     }
     std::fprintf(stderr, "learner: resumed at policy version %lld\n",
