@@ -184,7 +184,19 @@ v1::Rejection RejectionOf(const absl::Status& status) {
 }
 
 Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm)
-    : scenario_(scenario), config_(config), algorithm_(std::move(algorithm)) {
+    : scenario_(scenario),
+      config_(config),
+      algorithm_(std::move(algorithm)),
+      queue_(UnrollQueue::Options{
+          .capacity = config.queue_capacity,
+          .synchronous = config.synchronous,
+          .batch_steps = config.batch_steps,
+          .max_policy_lag = algorithm_->off_policy() ? std::nullopt : std::optional<int>(config.max_policy_lag),
+          .max_actor_ids = config.max_actor_ids,
+          .validate = [this](const v1::Unroll& unroll) { return Validate(unroll); },
+          .featurise = [this](v1::Unroll unroll) { return algorithm_->Featurise(std::move(unroll)); },
+          .on_accept = [this](const v1::Unroll& unroll) { CountEpisodes(unroll); },
+      }) {
   RegisterMetrics();
   if (!config_.run_dir.empty()) {
     checkpoints_.emplace((fs::path(config_.run_dir) / "checkpoints").string());
@@ -200,18 +212,19 @@ void Learner::RegisterMetrics() {
   policy_lag_ = &registry_.AddHistogram(kPolicyLag);
   // One lock of mu_ per scrape for all of them.
   registry_.AddSnapshot([this](metrics::Snapshot& s) {
+    const UnrollQueue::Stats queue = queue_.stats();
     absl::MutexLock lock(&mu_);
     const auto now = std::chrono::steady_clock::now();
-    s.Set(kUnrollsReceived, static_cast<double>(unrolls_received_));
+    s.Set(kUnrollsReceived, static_cast<double>(queue.received));
     s.Set(kBatchesDropped, static_cast<double>(batches_dropped_));
     s.Set(kMinibatchesSkipped, static_cast<double>(minibatches_skipped_));
-    s.Set(kQueueDepth, static_cast<double>(queue_.size()));
-    s.Set(kQueuedSteps, static_cast<double>(queued_steps_));
-    s.Set(kPushersWaiting, static_cast<double>(pushers_waiting_));
-    s.Set(kActorIds, static_cast<double>(actors_.size()));
-    s.Set(kIncarnations, static_cast<double>(actor_incarnations_));
+    s.Set(kQueueDepth, static_cast<double>(queue.depth));
+    s.Set(kQueuedSteps, static_cast<double>(queue.queued_steps));
+    s.Set(kPushersWaiting, static_cast<double>(queue.pushers_waiting));
+    s.Set(kActorIds, static_cast<double>(queue.actors.size()));
+    s.Set(kIncarnations, static_cast<double>(queue.incarnations));
     s.Set(kBudgetDone, done_ ? 1.0 : 0.0);
-    s.Set(kStalled, SecondsStalled(now));
+    s.Set(kStalled, SecondsStalled(now, queue.depth));
     s.Set(kTraining, SecondsTraining(now));
   });
 }
@@ -219,158 +232,30 @@ void Learner::RegisterMetrics() {
 int64_t Learner::IterationBytes(int64_t steps) const { return algorithm_->IterationBytes(steps); }
 
 absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
-  absl::Status status = Enqueue(std::move(unroll), cancelled);
+  const absl::Status status = queue_.Push(std::move(unroll), cancelled);
   if (IsRejection(status)) dropped_[RejectionOf(status)]->Increment();
   return status;
 }
 
-absl::Status Learner::Enqueue(v1::Unroll unroll, const std::function<bool()>& cancelled) {
-  absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true, config_.edti});
-  if (valid.ok()) {
-    // A batch gathers unrolls until it holds batch_steps, so the largest is
-    // batch_steps - 1 steps plus this unroll.
-    const int64_t steps = int64_t{unroll.length()} * unroll.num_envs();
-    if (const int64_t bytes = IterationBytes(config_.batch_steps - 1 + steps); bytes > config_.max_batch_bytes) {
-      valid = absl::ResourceExhaustedError(absl::StrFormat(
-          "unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of features here, "
-          "over the learner's cap of %.0f MB (use fewer envs or a shorter unroll)",
-          steps, bytes / 1e6, config_.max_batch_bytes / 1e6));
-    }
-  }
-  if (!valid.ok()) {
-    absl::MutexLock lock(&mu_);
-    ++unrolls_rejected_;
-    return valid;
-  }
-  int64_t admitted_version;
-  {
-    absl::MutexLock lock(&mu_);
-    IMCA_RETURN_IF_ERROR(Admit(unroll));
-    admitted_version = version_;
-  }
-  // Featurised here, on the pushing (gRPC) thread, so that the training
-  // thread only computes values and GAE and trains.
-  QueuedUnroll queued = algorithm_->Featurise(std::move(unroll));
-  absl::MutexLock lock(&mu_);
-  ++pushers_waiting_;
-  const absl::Condition room(
-      +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
-        return self->stopping_ || static_cast<int>(self->queue_.size()) < self->config_.queue_capacity;
-      },
-      this);
-  // Not queued after all: its steps no longer count towards this version's
-  // batch, and a resend of it is not a duplicate.
-  const auto withdraw = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
-    if (config_.synchronous && version_ == admitted_version) version_steps_ -= Steps(queued.unroll);
-  };
-  // No wait without a timeout: every second, whether the pusher is still there.
-  bool gone = false;
-  while (!mu_.AwaitWithTimeout(room, absl::Seconds(1))) {
-    if (cancelled != nullptr && cancelled()) {
-      gone = true;
-      break;
-    }
-  }
-  --pushers_waiting_;
-  // Checked again after the wait: the pusher may have gone (and resent this
-  // unroll on a new stream, which another push may have queued meanwhile).
-  if (gone || (cancelled != nullptr && cancelled())) {
-    withdraw();
-    return absl::CancelledError("the pusher went away while the queue was full");
-  }
-  if (stopping_) return StoppedStatus();
-  // Both checked again: other pushes may have been queued during the wait
-  // (a resend of this unroll, or new ids that filled the id cap).
-  if (absl::Status checked = CheckNotDuplicate(queued.unroll); !checked.ok()) {
-    withdraw();
-    return checked;
-  }
-  if (absl::Status checked = CheckActorIdRoom(queued.unroll); !checked.ok()) {
-    withdraw();
-    return checked;
-  }
-  const v1::Unroll& u = queued.unroll;
-  ++unrolls_received_;
-  actors_.insert(u.actor_id());
-  if (u.incarnation() != 0) {
-    auto [it, inserted] = accepted_.try_emplace(u.actor_id(), Accepted{u.incarnation(), u.sequence()});
-    if (inserted || it->second.incarnation != u.incarnation()) {
-      ++actor_incarnations_;
-      if (!inserted) {
-        std::fprintf(stderr, "learner: %s restarted (incarnation %016llx, was %016llx)\n", u.actor_id().c_str(),
-                     static_cast<unsigned long long>(u.incarnation()),
-                     static_cast<unsigned long long>(it->second.incarnation));
-      }
-    }
-    it->second = Accepted{u.incarnation(), u.sequence()};
-  }
-  for (int i = 0; i < u.episode_returns_size(); ++i) {
-    PushWindow(&train_returns_, u.episode_returns(i), config_.metrics_window);
-  }
+void Learner::CountEpisodes(const v1::Unroll& u) {
+  absl::MutexLock lock(&windows_mu_);
+  for (float r : u.episode_returns()) PushWindow(&train_returns_, r, config_.metrics_window);
   for (bool s : u.episode_success()) PushWindow(&train_success_, s, config_.metrics_window);
   for (bool s : u.eval_success()) PushWindow(&eval_success_, s, config_.metrics_window);
-  queued_steps_ += Steps(u);
-  queue_.push_back(std::move(queued));
-  return absl::OkStatus();
 }
 
-absl::Status Learner::CheckActorIdRoom(const v1::Unroll& unroll) {
-  if (actors_.size() >= static_cast<size_t>(config_.max_actor_ids) && actors_.count(unroll.actor_id()) == 0) {
-    // Each id is remembered for exactly-once delivery and reported in the
-    // status: a client inventing ids must not grow them without bound.
-    ++unrolls_rejected_;
-    return absl::ResourceExhaustedError(absl::StrCat("the learner tracks at most ", config_.max_actor_ids,
-                                                     " actor ids; unroll.actor_id is one more"));
+absl::Status Learner::Validate(const v1::Unroll& unroll) const {
+  IMCA_RETURN_IF_ERROR(ValidateUnroll(unroll, *scenario_, {true, true, config_.edti}));
+  // A batch gathers unrolls until it holds batch_steps, so the largest is
+  // batch_steps - 1 steps plus this unroll.
+  const int64_t steps = int64_t{unroll.length()} * unroll.num_envs();
+  if (const int64_t bytes = IterationBytes(config_.batch_steps - 1 + steps); bytes > config_.max_batch_bytes) {
+    return absl::ResourceExhaustedError(absl::StrFormat(
+        "unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of features here, "
+        "over the learner's cap of %.0f MB (use fewer envs or a shorter unroll)",
+        steps, bytes / 1e6, config_.max_batch_bytes / 1e6));
   }
   return absl::OkStatus();
-}
-
-absl::Status Learner::CheckNotDuplicate(const v1::Unroll& unroll) {
-  if (unroll.incarnation() == 0) return absl::OkStatus();
-  auto it = accepted_.find(unroll.actor_id());
-  if (it != accepted_.end() && it->second.incarnation == unroll.incarnation() &&
-      unroll.sequence() <= it->second.sequence) {
-    ++unrolls_duplicate_;
-    return absl::AlreadyExistsError(absl::StrCat("duplicate: unroll ", unroll.sequence(), " of ",
-                                                 unroll.actor_id(), " was accepted before"));
-  }
-  return absl::OkStatus();
-}
-
-absl::Status Learner::Admit(const v1::Unroll& unroll) {
-  if (stopping_) return StoppedStatus();
-  IMCA_RETURN_IF_ERROR(CheckNotDuplicate(unroll));
-  IMCA_RETURN_IF_ERROR(CheckActorIdRoom(unroll));
-  if (unroll.policy_version() > version_) {
-    // A learner restarted from an older checkpoint: the actor must refetch.
-    ++unrolls_rejected_;
-    return absl::AbortedError(absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
-                                           " is newer than the learner's ", version_));
-  }
-  if (config_.synchronous) {
-    if (unroll.policy_version() != version_) {
-      ++unrolls_stale_;
-      return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
-                                                        " is not the synchronous learner's ", version_));
-    }
-    if (version_steps_ >= config_.batch_steps) {
-      ++unrolls_stale_;
-      return absl::FailedPreconditionError(absl::StrCat("stale: the batch of policy version ", version_,
-                                                        " is full (synchronous learner)"));
-    }
-    version_steps_ += Steps(unroll);
-  } else if (!algorithm_->off_policy() && version_ - unroll.policy_version() > config_.max_policy_lag) {
-    ++unrolls_stale_;
-    return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
-                                                      " is more than ", config_.max_policy_lag,
-                                                      " behind ", version_));
-  }
-  return absl::OkStatus();
-}
-
-absl::Status Learner::StoppedStatus() const {
-  return done_ ? absl::OutOfRangeError("budget done: the learner has trained its --steps")
-               : absl::UnavailableError("learner is stopping");
 }
 
 std::shared_ptr<const v1::Policy> Learner::CurrentPolicy() const {
@@ -394,39 +279,42 @@ std::shared_ptr<const v1::Policy> Learner::WaitForPolicy(int64_t min_version, ab
 }
 
 v1::LearnerStatus Learner::Status() const {
+  const UnrollQueue::Stats queue = queue_.stats();
+  v1::LearnerStatus status;
+  {
+    absl::MutexLock lock(&windows_mu_);
+    status.set_success_rate(Mean(eval_success_));
+    status.set_episode_return(Mean(train_returns_));
+  }
   absl::MutexLock lock(&mu_);
   const double wall =
       wall_offset_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  v1::LearnerStatus status;
   status.set_policy_version(version_);
   status.set_env_steps(env_steps_);
-  status.set_unrolls_received(unrolls_received_);
-  status.set_unrolls_dropped_stale(unrolls_stale_);
-  status.set_unrolls_rejected(unrolls_rejected_);
+  status.set_unrolls_received(queue.received);
+  status.set_unrolls_dropped_stale(queue.stale);
+  status.set_unrolls_rejected(queue.rejected);
   status.set_wall_seconds(wall);
   status.set_env_steps_per_sec(wall > 0 ? env_steps_ / wall : 0);
-  status.set_success_rate(Mean(eval_success_));
-  status.set_episode_return(Mean(train_returns_));
   status.set_intrinsic_reward(last_intrinsic_);
   status.set_done(done_);
   status.set_batches_dropped(batches_dropped_);
-  status.set_queue_depth(static_cast<int32_t>(queue_.size()));
-  // Exact: a pusher whose Await does not block holds mu_ from its increment
-  // to its decrement, so only blocked pushers are ever seen.
-  status.set_pushers_waiting(static_cast<int32_t>(pushers_waiting_));
+  status.set_queue_depth(queue.depth);
+  status.set_pushers_waiting(queue.pushers_waiting);
   const auto now = std::chrono::steady_clock::now();
-  status.set_seconds_stalled(SecondsStalled(now));
+  status.set_seconds_stalled(SecondsStalled(now, queue.depth));
   status.set_seconds_training(SecondsTraining(now));
-  status.set_unrolls_duplicate(unrolls_duplicate_);
-  status.set_actor_incarnations(actor_incarnations_);
+  status.set_unrolls_duplicate(queue.duplicate);
+  status.set_actor_incarnations(queue.incarnations);
   status.set_minibatches_skipped(minibatches_skipped_);
-  for (const std::string& actor : actors_) status.add_actors_seen(actor);
+  for (const std::string& actor : queue.actors) status.add_actors_seen(actor);
   return status;
 }
 
-double Learner::SecondsStalled(std::chrono::steady_clock::time_point now) const {
-  return queue_.empty() || training_since_.has_value() ? 0.0
-                                                       : std::chrono::duration<double>(now - last_progress_).count();
+double Learner::SecondsStalled(std::chrono::steady_clock::time_point now, int queue_depth) const {
+  return queue_depth == 0 || training_since_.has_value()
+             ? 0.0
+             : std::chrono::duration<double>(now - last_progress_).count();
 }
 
 double Learner::SecondsTraining(std::chrono::steady_clock::time_point now) const {
@@ -436,28 +324,16 @@ double Learner::SecondsTraining(std::chrono::steady_clock::time_point now) const
 void Learner::Stop() {
   absl::MutexLock lock(&mu_);
   stopping_ = true;
+  queue_.Close(/*budget_done=*/false);
 }
 
-std::optional<Learner::QueuedUnroll> Learner::NextUnroll() {
+std::optional<FeaturisedUnroll> Learner::NextUnroll() {
+  int dropped_stale = 0;
+  std::optional<FeaturisedUnroll> next = queue_.Next(&dropped_stale);
+  for (int i = 0; i < dropped_stale; ++i) dropped_[v1::REJECTION_STALE]->Increment();
   absl::MutexLock lock(&mu_);
-  while (true) {
-    mu_.Await(absl::Condition(
-        +[](Learner* self) ABSL_EXCLUSIVE_LOCKS_REQUIRED(self->mu_) {
-          return self->stopping_ || !self->queue_.empty();
-        },
-        this));
-    if (stopping_) return std::nullopt;
-    QueuedUnroll queued = std::move(queue_.front());
-    queue_.pop_front();
-    last_progress_ = std::chrono::steady_clock::now();
-    queued_steps_ -= Steps(queued.unroll);
-    if (!algorithm_->off_policy() && version_ - queued.unroll.policy_version() > config_.max_policy_lag) {
-      ++unrolls_stale_;
-      dropped_[v1::REJECTION_STALE]->Increment();
-      continue;
-    }
-    return queued;
-  }
+  last_progress_ = std::chrono::steady_clock::now();
+  return next;
 }
 
 absl::Status Learner::Run() {
@@ -473,7 +349,7 @@ absl::Status Learner::Run() {
     int64_t steps = 0;
     Clock::time_point lap = Clock::now();
     while (steps < config_.batch_steps) {
-      std::optional<QueuedUnroll> queued = NextUnroll();
+      std::optional<FeaturisedUnroll> queued = NextUnroll();
       phases_.wait += Lap(lap);
       if (!queued.has_value()) break;  // Stopping.
       phases_.featurise += queued->featurise_seconds;
@@ -512,6 +388,7 @@ absl::Status Learner::Run() {
     absl::MutexLock lock(&mu_);
     done_ = config_.budget_steps > 0 && env_steps_ >= config_.budget_steps;
     stopping_ = true;
+    queue_.Close(done_);
   }
   return SaveCheckpoint();
 }
@@ -563,17 +440,11 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     if (!refused) policy_lag_->Observe(static_cast<double>(version - u.policy_version()));
   }
   const CreditStats credit = MeasureCredit(unrolls, steps * scenario_->num_agents());
+  queue_.MarkTrained(unrolls);
   {
     absl::MutexLock lock(&mu_);
     env_steps_ += steps;
     minibatches_skipped_ += stats.minibatches_skipped;
-    for (const v1::Unroll& u : unrolls) {
-      if (u.incarnation() == 0) continue;
-      Accepted& trained = trained_[u.actor_id()];
-      if (trained.incarnation != u.incarnation() || trained.sequence < u.sequence()) {
-        trained = Accepted{u.incarnation(), u.sequence()};
-      }
-    }
     last_intrinsic_ = credit.intrinsic;
   }
   if (trained_log_.has_value()) {
@@ -625,8 +496,9 @@ void Learner::Publish() {
   absl::MutexLock lock(&mu_);
   last_progress_ = std::chrono::steady_clock::now();
   if (policy_ != nullptr) ++version_;
-  version_steps_ = 0;
   policy_ = ExportPolicy();
+  // Under mu_: no actor sees the new policy before the queue judges unrolls by it.
+  queue_.NewVersion(version_);
 }
 
 std::shared_ptr<const v1::Policy> Learner::ExportPolicy() const {
@@ -639,7 +511,7 @@ IterationRecord Learner::Record(const IterationStats& stats, double lag, const C
   const v1::LearnerStatus s = Status();
   IterationRecord r;
   {
-    absl::MutexLock lock(&mu_);
+    absl::MutexLock lock(&windows_mu_);
     r.train_success_rate = Mean(train_success_);
     r.success_episodes = static_cast<double>(eval_success_.size());
     r.train_success_episodes = static_cast<double>(train_success_.size());
@@ -699,8 +571,7 @@ absl::Status Learner::SaveCheckpoint() {
     // The newest trained unroll of each actor incarnation, so that a
     // restarted learner still recognises resends of what it trained (and
     // takes again what was only queued: that was lost with the process).
-    absl::MutexLock lock(&mu_);
-    for (const auto& [actor, accepted] : trained_) {
+    for (const auto& [actor, accepted] : queue_.Trained()) {
       v1::CheckpointMeta::Trained* trained = meta.add_trained();
       trained->set_actor_id(actor);
       trained->set_incarnation(accepted.incarnation);
@@ -717,9 +588,9 @@ absl::Status Learner::Restore(const std::string& checkpoint_dir) {
                         CheckpointStore(checkpoint_dir).Restore([this](const std::string& path) {
                           return algorithm_->Load(path);
                         }));
-  absl::flat_hash_map<std::string, Accepted> trained;
+  absl::flat_hash_map<std::string, UnrollQueue::Accepted> trained;
   for (const v1::CheckpointMeta::Trained& t : meta.trained()) {
-    trained[t.actor_id()] = Accepted{t.incarnation(), t.sequence()};
+    trained[t.actor_id()] = UnrollQueue::Accepted{t.incarnation(), t.sequence()};
   }
   iteration_ = meta.iteration();
   {
@@ -727,8 +598,7 @@ absl::Status Learner::Restore(const std::string& checkpoint_dir) {
     wall_offset_ = meta.wall_seconds();
     version_ = meta.version();
     env_steps_ = meta.env_steps();
-    trained_ = trained;
-    accepted_ = std::move(trained);
+    queue_.Restore(version_, trained);
     policy_ = ExportPolicy();
   }
   // The cumulative families start from the checkpoint, not from 0 (a

@@ -29,6 +29,7 @@
 #include "learner/csv_log.h"
 #include "learner/iteration_metrics.h"
 #include "learner/learner_config.h"
+#include "learner/unroll_queue.h"
 
 namespace imca::learner {
 
@@ -39,12 +40,14 @@ bool IsRejection(const absl::Status& status);
 // learner.h); REJECTION_NONE for OK.
 v1::Rejection RejectionOf(const absl::Status& status);
 
-// The learner's domain logic, independent of gRPC: a bounded queue of
-// validated unrolls, the training loop of its Algorithm (MAPPO or MADDPG,
-// learner/algorithms/), versioned policy publication, metrics and
-// checkpoints. An iteration hands batch_steps joint env steps of unrolls to
-// the algorithm, one at a time as they arrive, then trains and publishes. Thread-safe: Push/CurrentPolicy/Status may be called
-// from any thread while one thread runs Run().
+// The learner's domain logic, independent of gRPC. It coordinates its parts:
+// the UnrollQueue (admission, exactly-once, back-pressure), its Algorithm
+// (MAPPO or MADDPG, learner/algorithms/), the CheckpointStore and two CsvLogs
+// (metrics.csv, trained_unrolls.csv); it owns the iteration loop, versioned
+// policy publication, status and metrics. An iteration hands batch_steps
+// joint env steps of unrolls to the algorithm, one at a time as they arrive,
+// then trains and publishes. Thread-safe: Push/CurrentPolicy/Status may be
+// called from any thread while one thread runs Run().
 class Learner {
  public:
   // `scenario` must outlive the learner. Errors: INVALID_ARGUMENT for a bad
@@ -110,27 +113,19 @@ class Learner {
  private:
   Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm);
 
-  // An accepted unroll with its network inputs, featurised by Push.
-  using QueuedUnroll = FeaturisedUnroll;
-
-  // Push without counting refusals by reason.
-  absl::Status Enqueue(v1::Unroll unroll, const std::function<bool()>& cancelled);
   // Registers the learner's families in registry_ (from the constructor).
   void RegisterMetrics();
-  // Push's checks of version, staleness and stopping; counts what it refuses.
-  absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // ALREADY_EXISTS (counted) if `unroll` is not newer than its actor
-  // incarnation's last accepted one.
-  absl::Status CheckNotDuplicate(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // RESOURCE_EXHAUSTED if the unroll's actor id would be one past
-  // config_.max_actor_ids.
-  absl::Status CheckActorIdRoom(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // Waits for the next queued unroll that is not stale (dropping and counting
-  // stale ones); nullopt once stopping.
-  std::optional<QueuedUnroll> NextUnroll();
-  absl::Status StoppedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Push's checks before admission: the unroll's fields, and the memory a
+  // batch with it needs (UnrollQueue::Options::validate).
+  absl::Status Validate(const v1::Unroll& unroll) const;
+  // Adds an accepted unroll's episodes to the windows (UnrollQueue's on_accept).
+  void CountEpisodes(const v1::Unroll& unroll);
+  // The queue's next fresh unroll (counting the stale ones it drops);
+  // nullopt once stopping.
+  std::optional<FeaturisedUnroll> NextUnroll();
   // LearnerStatus's seconds_stalled and seconds_training at `now`.
-  double SecondsStalled(std::chrono::steady_clock::time_point now) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  double SecondsStalled(std::chrono::steady_clock::time_point now, int queue_depth) const
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   double SecondsTraining(std::chrono::steady_clock::time_point now) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Trains the algorithm on the iteration made of `unrolls` (already
   // added), publishes and writes metrics.
@@ -183,43 +178,30 @@ class Learner {
   };
   Phases phases_;                        // Training thread only.
 
+  // Admission and the queue of unrolls, with its own lock: never taken
+  // while holding the queue's, mu_ may be held while calling it.
+  UnrollQueue queue_;
+
   mutable absl::Mutex mu_;
   double wall_offset_ ABSL_GUARDED_BY(mu_) = 0;  // Seconds of earlier runs (resume).
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
-  std::deque<QueuedUnroll> queue_ ABSL_GUARDED_BY(mu_);
-  int64_t queued_steps_ ABSL_GUARDED_BY(mu_) = 0;
-  // Synchronous mode: steps accepted for the current version.
-  int64_t version_steps_ ABSL_GUARDED_BY(mu_) = 0;
   std::shared_ptr<const v1::Policy> policy_ ABSL_GUARDED_BY(mu_);
   int64_t version_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t env_steps_ ABSL_GUARDED_BY(mu_) = 0;
-  int64_t unrolls_received_ ABSL_GUARDED_BY(mu_) = 0;
-  int64_t unrolls_stale_ ABSL_GUARDED_BY(mu_) = 0;
-  int64_t unrolls_rejected_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t batches_dropped_ ABSL_GUARDED_BY(mu_) = 0;
-  int64_t pushers_waiting_ ABSL_GUARDED_BY(mu_) = 0;  // Pushes blocked in the wait for room.
   // The training thread's last dequeue or publication.
   std::chrono::steady_clock::time_point last_progress_ ABSL_GUARDED_BY(mu_) = std::chrono::steady_clock::now();
   // Set while the algorithm adds an unroll (which may train) or trains.
   std::optional<std::chrono::steady_clock::time_point> training_since_ ABSL_GUARDED_BY(mu_);
-  int64_t unrolls_duplicate_ ABSL_GUARDED_BY(mu_) = 0;
-  int64_t actor_incarnations_ ABSL_GUARDED_BY(mu_) = 0;
-  // The newest accepted (queued) unroll of each actor (by actor_id): its
-  // incarnation and sequence number.
-  struct Accepted {
-    uint64_t incarnation = 0;
-    int64_t sequence = 0;
-  };
-  absl::flat_hash_map<std::string, Accepted> accepted_ ABSL_GUARDED_BY(mu_);
-  // The same for trained unrolls: what checkpoints save.
-  absl::flat_hash_map<std::string, Accepted> trained_ ABSL_GUARDED_BY(mu_);
   int64_t minibatches_skipped_ ABSL_GUARDED_BY(mu_) = 0;
   bool done_ ABSL_GUARDED_BY(mu_) = false;
-  // Every actor id seen; at most config_.max_actor_ids (Push refuses one more).
-  std::set<std::string> actors_ ABSL_GUARDED_BY(mu_);
-  std::deque<bool> eval_success_ ABSL_GUARDED_BY(mu_);
-  std::deque<bool> train_success_ ABSL_GUARDED_BY(mu_);
-  std::deque<float> train_returns_ ABSL_GUARDED_BY(mu_);
+  // The episodes of accepted unrolls, over the last metrics_window: updated
+  // under the queue's lock as it accepts (before the training thread can
+  // take the unroll), so their own lock, taken last, calling nothing.
+  mutable absl::Mutex windows_mu_;
+  std::deque<bool> eval_success_ ABSL_GUARDED_BY(windows_mu_);
+  std::deque<bool> train_success_ ABSL_GUARDED_BY(windows_mu_);
+  std::deque<float> train_returns_ ABSL_GUARDED_BY(windows_mu_);
   double last_intrinsic_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
