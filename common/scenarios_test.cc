@@ -1,4 +1,4 @@
-// One test per rule of SPEC section 7, with scripted action sequences on
+// One test per rule of docs/scenarios.md, with scripted action sequences on
 // small maps (cells are row * width + col).
 #include <algorithm>
 #include <array>

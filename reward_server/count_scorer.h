@@ -15,7 +15,7 @@
 
 namespace imca::reward {
 
-// Count-based novelty N(x) = 1 / sqrt(C_before(x) + 1) (SPEC 4.1;
+// Count-based novelty N(x) = 1 / sqrt(C_before(x) + 1) (docs/credit.md;
 // docs/credit.md works an example), for CreditScorer:
 //   joint (shared, imca): N(S, U) from the joint table;
 //   imca contributions:   r^a = N(S,U) - sum_u' pi^a(u') N(S, (U^-a, u')),

@@ -1,4 +1,4 @@
-// Every credit formula of SPEC section 5 for count novelty, against numbers
+// Every credit formula of docs/credit.md for count novelty, against numbers
 // worked by hand for 2 agents and 5 actions (docs/credit.md shows the work).
 #include <cmath>
 #include <cstdio>

@@ -11,9 +11,9 @@
 
 namespace imca::reward {
 
-// How a global bonus becomes per-agent bonuses (SPEC section 5).
+// How a global bonus becomes per-agent bonuses (docs/credit.md).
 enum class Credit { kNone, kIndependent, kShared, kImca };
-// How homogeneous agents' identities enter keys (SPEC section 5, paper 4.3).
+// How homogeneous agents' identities enter keys (docs/credit.md, paper 4.3).
 enum class Permutation { kOff, kRandom, kCanonical };
 
 // Parse "none|independent|shared|imca" and "off|random|canonical".

@@ -72,7 +72,7 @@ class Novelty {
   virtual std::optional<int64_t> DurableTransitions() const { return std::nullopt; }
 };
 
-// The one credit rule (SPEC section 5, docs/credit.md) over any Novelty:
+// The one credit rule (docs/credit.md) over any Novelty:
 //   none:        every output 0, shares 1/n; the novelty is not called.
 //   shared:      r_i^a = R_i = beta * N(S, U).
 //   independent: r_i^a = beta * N_a (the kind's local novelty); R_i is

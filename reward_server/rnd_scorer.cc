@@ -247,7 +247,7 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   const double std = model.RewardStd();
   const torch::Tensor scaled = (novelty / std).contiguous();
   const float* nov = scaled.data_ptr<float>();
-  // Counterfactual novelties [N][n slots][A], scaled like the bonus (SPEC 5).
+  // Counterfactual novelties [N][n slots][A], scaled like the bonus (docs/credit.md).
   torch::Tensor cf;
   if (imca) cf = (model.CounterfactualNovelty(normalized, taken, encoder.state_dim(), n, A) / std).contiguous();
   for (int64_t i = 0; i < N; ++i) {

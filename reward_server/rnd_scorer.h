@@ -22,7 +22,7 @@ struct RndConfig {
   int threads = 1;                       // LibTorch intra-op threads.
 };
 
-// Random network distillation (paper eq. 6, SPEC 4.2) on the encoded joint
+// Random network distillation (paper eq. 6; docs/credit.md) on the encoded joint
 // state + one-hot joint action (JointInputEncoder), for CreditScorer
 // (docs/credit.md):
 //   N(x) = mean((f(x') - f^(x'))^2), x' = clip((x - mean) / std, -5, 5),

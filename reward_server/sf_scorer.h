@@ -21,7 +21,7 @@ struct SfConfig {
   int threads = 1;                       // LibTorch intra-op threads.
 };
 
-// Successor-feature control (paper eq. 7, 11-13; SPEC 4.3, 5), for CreditScorer:
+// Successor-feature control (paper eq. 7, 11-13; docs/credit.md), for CreditScorer:
 //   phi: a fixed random network of the joint state (JointInputEncoder, agent
 //   order); psi trained by TD, psi(S_t) -> phi(S_t) + gamma psi'(S_{t+1})
 //   (psi' = target copy; 0 after termination);

@@ -48,7 +48,7 @@ def baselines():
 def pairing(scenario, reward, steps, seeds, maddpg=False):
     """The paper's methods on one scenario: three baselines, imca x permutations
     (and with `maddpg` the paper's other learner, MADDPG, without and with the
-    IMCA bonus). SF's joint input is not permuted (SPEC 5: permutations apply
+    IMCA bonus). SF's joint input is not permuted (docs/credit.md: permutations apply
     to count and RND), so its imca runs only with permutation off."""
     entries = [{"scenario": scenario, "reward": reward, "credit": baselines(), "permutation": "off",
                 "seed": seeds, "steps": steps},

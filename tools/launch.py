@@ -2,7 +2,7 @@
 """./imca train: one reward server, one learner and N actors on loopback.
 
 Starts the three services as separate processes on free ports, shows a live
-progress line, and leaves a run folder (see README.md, "What a run leaves").
+progress line, and leaves a run folder (docs/usage.md, "What a run leaves").
 Ctrl-C stops every process in order (actors, learner, reward server) and still
 leaves a valid run folder.
 """
