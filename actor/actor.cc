@@ -251,7 +251,6 @@ void Actor::Rollout(v1::Unroll* u) {
   for (const env::EpisodeEnd& end : finished_) {
     u->add_episode_returns(end.team_return);
     u->add_episode_success(end.success);
-    u->add_episode_lengths(end.length);
   }
   finished_.clear();
   eval_envs_.TakeFinished(&finished_);

@@ -31,6 +31,14 @@ class LauncherErrorsTest(unittest.TestCase):
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
             self.assertIn(flag, r.stderr)
 
+    def test_flags_take_underscores_as_hyphens(self):
+        args = launch.parse_args(["--num_agents", "3", "--scenario=spread", "--door_timer=2", "--batch-steps", "64"])
+        self.assertEqual((args.num_agents, args.scenario, args.door_timer, args.batch_steps), (3, "spread", 2, 64))
+        self.assertEqual(launch.dashed(["--a_b=c_d", "x_y", "--", "--e_f"]), ["--a-b=c_d", "x_y", "--", "--e_f"])
+        r = run(["--no_such_flag"])
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--no-such-flag", r.stderr)
+
     def test_missing_map_names_it(self):
         r = run(["--map", "/nonexistent/map.txt"])
         self.assertEqual(r.returncode, 2)

@@ -190,7 +190,22 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message}\n")
 
 
+def dashed(argv):
+    """argv with every flag name spelled with hyphens: ./imca takes
+    --door_timer as --door-timer (the binaries' own spelling) everywhere and
+    documents the hyphens. Values and what follows a bare "--" are untouched."""
+    out = list(argv)
+    for i, word in enumerate(out):
+        if word == "--":
+            break
+        if word.startswith("--"):
+            name, eq, value = word.partition("=")
+            out[i] = "--" + name[2:].replace("_", "-") + eq + value
+    return out
+
+
 def parse_args(argv):
+    argv = dashed(argv)
     p = OneLineParser(prog="imca train", description=__doc__,
                       formatter_class=argparse.RawDescriptionHelpFormatter)
     known = facts()
