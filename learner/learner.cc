@@ -15,8 +15,8 @@
 #include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "common/unroll_check.h"
-#include "learner/algorithms/maddpg.h"
-#include "learner/algorithms/mappo.h"
+#include "learner/algorithms/maddpg/maddpg.h"
+#include "learner/algorithms/mappo/mappo.h"
 #include "learner/lap.h"
 
 namespace imca::learner {

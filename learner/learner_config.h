@@ -7,8 +7,8 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "learner/gae.h"
-#include "learner/ppo_trainer.h"
+#include "learner/algorithms/mappo/gae.h"
+#include "learner/algorithms/mappo/ppo_trainer.h"
 
 namespace imca::learner {
 
@@ -34,7 +34,7 @@ std::string TimeLimitName(TimeLimit limit);
 std::vector<std::string> TimeLimitNames();
 absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name);
 
-// MADDPG for discrete actions (learner/algorithms/maddpg.h, docs/learner.md
+// MADDPG for discrete actions (learner/algorithms/maddpg/maddpg.h, docs/learner.md
 // "MADDPG"): the reference implementations' defaults (BASELINES.md 2) where
 // our episodes allow them.
 struct MaddpgConfig {
@@ -59,8 +59,8 @@ struct MaddpgConfig {
 
 // The learner's algorithm.
 enum class Algo {
-  kMappo,   // On-policy multi-agent PPO (learner/algorithms/mappo.h).
-  kMaddpg,  // Off-policy MADDPG (learner/algorithms/maddpg.h).
+  kMappo,   // On-policy multi-agent PPO (learner/algorithms/mappo/mappo.h).
+  kMaddpg,  // Off-policy MADDPG (learner/algorithms/maddpg/maddpg.h).
 };
 // "mappo" / "maddpg"; the parser returns INVALID_ARGUMENT naming them.
 std::string AlgoName(Algo algo);
@@ -69,8 +69,12 @@ absl::StatusOr<Algo> ParseAlgo(const std::string& name);
 
 struct LearnerConfig {
   Algo algo = Algo::kMappo;
-  PpoConfig ppo;                  // MAPPO only.
-  MaddpgConfig maddpg;            // MADDPG only; its discount is `gamma`, its seed ppo.seed.
+  // Of every algorithm: the seed of network initialisation and sampling
+  // (minibatch shuffling, replay draws), and LibTorch's intra-op threads.
+  uint64_t seed = 1;
+  int threads = 1;
+  PpoConfig ppo;                  // MAPPO only; its seed and threads are the two above.
+  MaddpgConfig maddpg;            // MADDPG only; its discount is `gamma`.
   CriticInput critic_input = CriticInput::kState;  // MAPPO only (MADDPG's critic: joint obs and actions).
   TimeLimit time_limit = TimeLimit::kBootstrap;
   // Synchronous collection: an iteration trains only on unrolls acted with
@@ -87,7 +91,7 @@ struct LearnerConfig {
   // refused once the batch is full.
   int actors = 2;
   // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
-  // value of interaction (EdtiInteractionRewards, learner/gae.h, from the
+  // value of interaction (EdtiInteractionRewards, learner/algorithms/mappo/gae.h, from the
   // unroll's influences and the critic's values of the influenced agents),
   // learned by a third value head (ppo.value_heads must be 3). Push refuses
   // unrolls without influences (INVALID_ARGUMENT naming unroll.influences).

@@ -1,5 +1,5 @@
 #include "learner/learner.h"
-#include "learner/algorithms/mappo.h"
+#include "learner/algorithms/mappo/mappo.h"
 
 #include <cmath>
 #include <filesystem>

@@ -19,7 +19,7 @@
 #include "common/unroll_check.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
-#include "learner/ppo_trainer.h"
+#include "learner/algorithms/mappo/ppo_trainer.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50052", "host:port to serve on (port 0: any free port)");
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
@@ -114,8 +114,8 @@ ABSL_FLAG(int, queue_capacity, kDefaults.queue_capacity,
 ABSL_FLAG(int, checkpoint_every, kDefaults.checkpoint_every, "iterations between checkpoints (0: not by iterations)");
 ABSL_FLAG(double, checkpoint_seconds, kDefaults.checkpoint_seconds,
           "seconds between checkpoints (0: not by time); a killed learner loses at most this much training");
-ABSL_FLAG(uint64_t, seed, kDefaults.ppo.seed, "seed of network initialisation and minibatch shuffling");
-ABSL_FLAG(int, threads, kDefaults.ppo.threads, "LibTorch intra-op threads");
+ABSL_FLAG(uint64_t, seed, kDefaults.seed, "seed of network initialisation and minibatch shuffling");
+ABSL_FLAG(int, threads, kDefaults.threads, "LibTorch intra-op threads");
 ABSL_FLAG(bool, concurrent_critic, kDefaults.ppo.concurrent_critic,
           "run each minibatch's critic pass on a second thread, concurrently with the actor's (same result)");
 ABSL_FLAG(int64_t, max_batch_mb, kDefaults.max_batch_bytes / 1000000,
@@ -206,8 +206,8 @@ absl::StatusOr<imca::learner::LearnerConfig> ConfigFromFlags(absl::string_view s
   config.time_limit = *time_limit;
   if (const auto synchronous = absl::GetFlag(FLAGS_synchronous)) config.synchronous = *synchronous;
   config.actors = absl::GetFlag(FLAGS_actors);
-  config.ppo.seed = absl::GetFlag(FLAGS_seed);
-  config.ppo.threads = absl::GetFlag(FLAGS_threads);
+  config.seed = absl::GetFlag(FLAGS_seed);
+  config.threads = absl::GetFlag(FLAGS_threads);
   config.ppo.concurrent_critic = absl::GetFlag(FLAGS_concurrent_critic);
   config.gamma = absl::GetFlag(FLAGS_gamma);
   config.gamma_int = absl::GetFlag(FLAGS_gamma_int);
@@ -243,8 +243,8 @@ std::string ConfigJson(const imca::learner::LearnerConfig& c) {
       .Add("max_policy_lag", c.max_policy_lag)
       .Add("queue_capacity", c.queue_capacity)
       .Add("max_batch_mb", c.max_batch_bytes / 1000000)
-      .Add("seed", c.ppo.seed)
-      .Add("threads", c.ppo.threads)
+      .Add("seed", c.seed)
+      .Add("threads", c.threads)
       .Add("hidden", c.ppo.hidden)
       .AddExact("lr", c.ppo.learning_rate)
       .Add("separate_optimizers", c.ppo.separate_optimizers)

@@ -177,7 +177,7 @@ double BenchLearner(const env::Scenario& scenario, int rounds, int threads, cons
   config.synchronous = false;  // Update throughput: every pushed unroll is trained.
   config.run_dir = "/tmp/imca_bench_speed_learner_" + std::to_string(getpid());
   config.checkpoint_every = 0;
-  config.ppo.threads = threads;
+  config.threads = threads;
   config.ppo.separate_optimizers = shape.separate_optimizers;
   config.ppo.concurrent_critic = shape.concurrent_critic;
   config.max_policy_lag = 1 << 30;

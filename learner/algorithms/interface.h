@@ -9,14 +9,13 @@
 #include "absl/status/statusor.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
-#include "learner/ppo_trainer.h"
 
 namespace imca::learner {
 
 // The learner's training algorithm, behind which the service, the queue,
 // policy versions, checkpoints' metadata and metrics are shared
-// (learner/learner.h). Two implementations: MAPPO (mappo.h, on-policy: an
-// iteration's unrolls become one PPO batch) and MADDPG (maddpg.h,
+// (learner/learner.h). Two implementations: MAPPO (mappo/, on-policy: an
+// iteration's unrolls become one PPO batch) and MADDPG (maddpg/,
 // off-policy: unrolls go into a replay buffer and the algorithm takes as many
 // gradient steps as the configured ratio of updates to env steps allows).
 // Torch stays behind the implementations' .cc files.
@@ -30,13 +29,23 @@ struct FeaturisedUnroll {
   double featurise_seconds = 0;
 };
 
-// What one iteration did: the metrics row's algorithm columns. The training
-// statistics are PpoStats' (learner/ppo_trainer.h), which MADDPG fills as
-// its own: policy_loss -mean Q_i (+ the logit regulariser), value_loss the
-// critic's TD error^2, entropy of its actors, minibatches_skipped its skipped
-// steps; approx_kl, clip_fraction and behaviour_kl are PPO's only. Fields an
-// algorithm has no notion of stay 0.
-struct IterationStats : PpoStats {
+// What one iteration did: the metrics row's algorithm columns
+// (learner/iteration_metrics.h). Each algorithm fills what it has a notion
+// of, in its own meaning; the rest stays 0.
+struct IterationStats {
+  // MAPPO: the clipped surrogate; MADDPG: -mean Q_i (+ the logit regulariser).
+  double policy_loss = 0;
+  // MAPPO: the critic's squared error (per head, summed); MADDPG: the TD error^2.
+  double value_loss = 0;
+  double entropy = 0;  // Of the acting policies.
+  // PPO's only: the KL and clip share against the policy the clip is
+  // measured against, and how stale the batch was (PpoStats).
+  double approx_kl = 0, clip_fraction = 0, behaviour_kl = 0;
+  double grad_norm = 0;  // Before clipping, mean over gradient steps.
+  // Gradient steps not taken because their loss or gradient was not finite,
+  // and why the first of them failed.
+  int64_t minibatches_skipped = 0;
+  std::string skip_reason;
   int64_t updates = 0;       // Gradient steps taken (PPO: minibatch steps).
   int64_t replay_size = 0;   // Transitions held (off-policy only).
   double voi_reward = 0;     // EDTI's value-of-interaction reward (MAPPO --edti).
@@ -44,6 +53,9 @@ struct IterationStats : PpoStats {
   // for PPO; MADDPG's inserting counts as copy (its due updates as Train's
   // forward, backward and optimizer phases).
   double seconds_values = 0, seconds_gae = 0, seconds_copy = 0;
+  // Of training: the batch made ready, then summed over gradient steps the
+  // forward passes and losses, backward passes, clipping and optimiser steps.
+  double seconds_prepare = 0, seconds_forward = 0, seconds_backward = 0, seconds_optimizer = 0;
 };
 
 // Not thread-safe except where noted: the learner's training thread owns it.

@@ -1,5 +1,5 @@
-#ifndef IMCA_LEARNER_GAE_H_
-#define IMCA_LEARNER_GAE_H_
+#ifndef IMCA_LEARNER_ALGORITHMS_MAPPO_GAE_H_
+#define IMCA_LEARNER_ALGORITHMS_MAPPO_GAE_H_
 
 #include <cstdint>
 
@@ -44,4 +44,4 @@ void EdtiInteractionRewards(int64_t T, int64_t E, int n, const float* influences
 
 }  // namespace imca::learner
 
-#endif  // IMCA_LEARNER_GAE_H_
+#endif  // IMCA_LEARNER_ALGORITHMS_MAPPO_GAE_H_

@@ -1,4 +1,4 @@
-#include "learner/ppo_trainer.h"
+#include "learner/algorithms/mappo/ppo_trainer.h"
 
 #include <algorithm>
 #include <cmath>

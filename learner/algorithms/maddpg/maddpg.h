@@ -1,5 +1,5 @@
-#ifndef IMCA_LEARNER_ALGORITHMS_MADDPG_H_
-#define IMCA_LEARNER_ALGORITHMS_MADDPG_H_
+#ifndef IMCA_LEARNER_ALGORITHMS_MADDPG_MADDPG_H_
+#define IMCA_LEARNER_ALGORITHMS_MADDPG_MADDPG_H_
 
 #include <cstdint>
 #include <memory>
@@ -85,4 +85,4 @@ class Maddpg final : public Algorithm {
 
 }  // namespace imca::learner
 
-#endif  // IMCA_LEARNER_ALGORITHMS_MADDPG_H_
+#endif  // IMCA_LEARNER_ALGORITHMS_MADDPG_MADDPG_H_

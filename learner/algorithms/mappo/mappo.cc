@@ -1,11 +1,11 @@
-#include "learner/algorithms/mappo.h"
+#include "learner/algorithms/mappo/mappo.h"
 
 #include <algorithm>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
-#include "learner/gae.h"
+#include "learner/algorithms/mappo/gae.h"
 #include "learner/lap.h"
 
 namespace imca::learner {
@@ -27,8 +27,11 @@ absl::StatusOr<std::unique_ptr<Mappo>> Mappo::Create(const env::Scenario* scenar
     return absl::InvalidArgumentError("gamma, gamma_int must be in (0,1] and lambda in [0,1]");
   }
   const env::Featurizer featurizer(*scenario);
+  PpoConfig ppo = config.ppo;
+  ppo.seed = config.seed;
+  ppo.threads = config.threads;
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<PpoTrainer> trainer,
-                        PpoTrainer::Create(config.ppo, featurizer.obs_dim(), MappoCriticDim(*scenario, config),
+                        PpoTrainer::Create(ppo, featurizer.obs_dim(), MappoCriticDim(*scenario, config),
                                            scenario->num_actions()));
   return std::unique_ptr<Mappo>(new Mappo(scenario, config, std::move(trainer)));
 }
@@ -193,7 +196,20 @@ absl::StatusOr<IterationStats> Mappo::Train() {
   absl::StatusOr<PpoStats> trained = trainer_->Train(batch_);
   batch_.Clear();
   if (!trained.ok()) return trained.status();
-  static_cast<PpoStats&>(stats) = *trained;
+  const PpoStats& ppo = *trained;
+  stats.policy_loss = ppo.policy_loss;
+  stats.value_loss = ppo.value_loss;
+  stats.entropy = ppo.entropy;
+  stats.approx_kl = ppo.approx_kl;
+  stats.clip_fraction = ppo.clip_fraction;
+  stats.behaviour_kl = ppo.behaviour_kl;
+  stats.grad_norm = ppo.grad_norm;
+  stats.seconds_prepare = ppo.seconds_prepare;
+  stats.seconds_forward = ppo.seconds_forward;
+  stats.seconds_backward = ppo.seconds_backward;
+  stats.seconds_optimizer = ppo.seconds_optimizer;
+  stats.minibatches_skipped = ppo.minibatches_skipped;
+  stats.skip_reason = ppo.skip_reason;
   stats.updates = int64_t{config_.ppo.epochs} * config_.ppo.minibatches - stats.minibatches_skipped;
   return stats;
 }

@@ -1,5 +1,5 @@
-#ifndef IMCA_LEARNER_PPO_TRAINER_H_
-#define IMCA_LEARNER_PPO_TRAINER_H_
+#ifndef IMCA_LEARNER_ALGORITHMS_MAPPO_PPO_TRAINER_H_
+#define IMCA_LEARNER_ALGORITHMS_MAPPO_PPO_TRAINER_H_
 
 #include <cstdint>
 #include <memory>
@@ -182,4 +182,4 @@ class PpoTrainer {
 
 }  // namespace imca::learner
 
-#endif  // IMCA_LEARNER_PPO_TRAINER_H_
+#endif  // IMCA_LEARNER_ALGORITHMS_MAPPO_PPO_TRAINER_H_

@@ -1,4 +1,4 @@
-#include "learner/gae.h"
+#include "learner/algorithms/mappo/gae.h"
 
 #include <cstdint>
 #include <memory>

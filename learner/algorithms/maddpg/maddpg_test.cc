@@ -1,4 +1,4 @@
-#include "learner/algorithms/maddpg.h"
+#include "learner/algorithms/maddpg/maddpg.h"
 
 #include <torch/torch.h>
 
@@ -10,7 +10,7 @@
 #include "common/test_unrolls.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
-#include "learner/algorithms/maddpg_internal.h"
+#include "learner/algorithms/maddpg/maddpg_internal.h"
 #include "learner/learner.h"
 
 namespace imca::learner {
@@ -199,7 +199,7 @@ TEST_F(MaddpgTest, CheckpointRoundTripRestoresPolicyAndRatioAndRefusesOtherShape
   const std::string path = ::testing::TempDir() + "/maddpg_test.pt";
   ASSERT_TRUE(maddpg->Save(path).ok());
   LearnerConfig other_seed = config_;
-  other_seed.ppo.seed = 99;
+  other_seed.seed = 99;
   auto restored = Make(other_seed);
   EXPECT_NE(restored->ProbabilitiesForTest(state_), maddpg->ProbabilitiesForTest(state_));
   ASSERT_TRUE(restored->Load(path).ok());

@@ -1,5 +1,5 @@
-#ifndef IMCA_LEARNER_ALGORITHMS_MAPPO_H_
-#define IMCA_LEARNER_ALGORITHMS_MAPPO_H_
+#ifndef IMCA_LEARNER_ALGORITHMS_MAPPO_MAPPO_H_
+#define IMCA_LEARNER_ALGORITHMS_MAPPO_MAPPO_H_
 
 #include <memory>
 #include <vector>
@@ -9,7 +9,7 @@
 #include "common/featurizer.h"
 #include "learner/algorithms/interface.h"
 #include "learner/learner_config.h"
-#include "learner/ppo_trainer.h"
+#include "learner/algorithms/mappo/ppo_trainer.h"
 
 namespace imca::learner {
 
@@ -66,4 +66,4 @@ int MappoCriticDim(const env::Scenario& scenario, const LearnerConfig& config);
 
 }  // namespace imca::learner
 
-#endif  // IMCA_LEARNER_ALGORITHMS_MAPPO_H_
+#endif  // IMCA_LEARNER_ALGORITHMS_MAPPO_MAPPO_H_

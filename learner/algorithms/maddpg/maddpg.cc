@@ -1,4 +1,4 @@
-#include "learner/algorithms/maddpg.h"
+#include "learner/algorithms/maddpg/maddpg.h"
 
 #include <ATen/CPUGeneratorImpl.h>
 #include <torch/torch.h>
@@ -12,7 +12,7 @@
 #include "absl/strings/str_join.h"
 #include "common/featurizer.h"
 #include "common/status_macros.h"
-#include "learner/algorithms/maddpg_internal.h"
+#include "learner/algorithms/maddpg/maddpg_internal.h"
 #include "learner/lap.h"
 #include "nn/archive.h"
 #include "nn/mlp.h"
@@ -84,8 +84,8 @@ struct Maddpg::Impl {
         k(scenario->state_size()),
         A(scenario->num_actions()),
         D(featurizer.obs_dim()),
-        generator(at::detail::createCPUGenerator(nn::SubSeed(config.ppo.seed, uint64_t{1} << 32))) {
-    torch::set_num_threads(std::max(1, config.ppo.threads));
+        generator(at::detail::createCPUGenerator(nn::SubSeed(config.seed, uint64_t{1} << 32))) {
+    torch::set_num_threads(std::max(1, config.threads));
     nets = BuildNets();
   }
 
@@ -104,7 +104,7 @@ struct Maddpg::Impl {
                          .activation(nn::Activation::kRelu)
                          .hidden_gain(std::sqrt(2.0))
                          .last_gain(last_gain)
-                         .seed(nn::SubSeed(config.ppo.seed, stream)));
+                         .seed(nn::SubSeed(config.seed, stream)));
     };
     std::vector<torch::Tensor> actor_params, critic_params;
     for (int i = 0; i < networks(); ++i) {

@@ -1,5 +1,5 @@
-#ifndef IMCA_LEARNER_ALGORITHMS_MADDPG_INTERNAL_H_
-#define IMCA_LEARNER_ALGORITHMS_MADDPG_INTERNAL_H_
+#ifndef IMCA_LEARNER_ALGORITHMS_MADDPG_MADDPG_INTERNAL_H_
+#define IMCA_LEARNER_ALGORITHMS_MADDPG_MADDPG_INTERNAL_H_
 
 // LibTorch-only pieces of MADDPG, exposed for its unit test.
 #include <torch/torch.h>
@@ -26,4 +26,4 @@ inline torch::Tensor OneHotArgmax(const torch::Tensor& logits) {
 
 }  // namespace imca::learner::internal
 
-#endif  // IMCA_LEARNER_ALGORITHMS_MADDPG_INTERNAL_H_
+#endif  // IMCA_LEARNER_ALGORITHMS_MADDPG_MADDPG_INTERNAL_H_
