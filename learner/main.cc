@@ -335,6 +335,61 @@ std::string ListJson() {
          "\n";
 }
 
+// Writes the learner's status record (--status_file, read by a supervisor)
+// if `path` is set; a failure is reported, not fatal.
+void WriteLearnerStatus(const std::string& path, const imca::learner::Learner& learner) {
+  using namespace imca;
+  if (path.empty()) return;
+  const v1::LearnerStatus s = learner.Status();
+  JsonObject fields;
+  fields.Add("policy_version", s.policy_version())
+      .Add("env_steps", s.env_steps())
+      .Add("unrolls_received", s.unrolls_received())
+      .Add("unrolls_duplicate", s.unrolls_duplicate())
+      .Add("actor_incarnations", s.actor_incarnations())
+      .Add("queue_depth", s.queue_depth())
+      .Add("pushers_waiting", s.pushers_waiting())
+      .Add("seconds_stalled", s.seconds_stalled(), 3)
+      .Add("seconds_training", s.seconds_training(), 3)
+      .Add("batches_dropped", s.batches_dropped())
+      .Add("done", s.done());
+  const absl::Status written = WriteStatusFile(path, std::move(fields));
+  if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
+}
+
+// Runs the learner's training to its end while its server answers: a
+// watcher turns a shutdown signal (which only sets a flag) into Stop() and
+// writes the status file every second, from its own thread, so that a
+// wedged training thread shows as a growing seconds_stalled, not a silent
+// file. After the budget it keeps answering up to `linger_seconds`, so that
+// actors learn that it is done (OUT_OF_RANGE on push, done in GetStatus)
+// instead of retrying. Returns Run()'s status.
+absl::Status TrainWhileServing(imca::learner::Learner* learner, const std::string& status_file,
+                               double linger_seconds) {
+  using imca::ShutdownRequested;
+  std::atomic<bool> finished{false};
+  std::thread watcher([&] {
+    auto last_status = std::chrono::steady_clock::time_point{};
+    while (!finished.load() && !ShutdownRequested()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (std::chrono::steady_clock::now() - last_status > std::chrono::seconds(1)) {
+        last_status = std::chrono::steady_clock::now();
+        WriteLearnerStatus(status_file, *learner);
+      }
+    }
+    learner->Stop();
+  });
+  const absl::Status run = learner->Run();
+  finished.store(true);
+  watcher.join();
+  const auto linger_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(linger_seconds);
+  while (run.ok() && learner->Status().done() && !ShutdownRequested() &&
+         std::chrono::steady_clock::now() < linger_end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return run;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -398,53 +453,10 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "learner: serving on port %d (%s)\n", port,
                TransportSummary(server_options->transport, /*server=*/true).c_str());
 
-  // Signals only set a flag; this watcher turns it into Learner::Stop().
-  // It also writes the status file: from this thread, so that a wedged
-  // training thread shows as a growing seconds_stalled, not a silent file.
-  std::atomic<bool> finished{false};
   const std::string status_file = absl::GetFlag(FLAGS_status_file);
-  auto write_status = [&] {
-    if (status_file.empty()) return;
-    const v1::LearnerStatus s = (*learner)->Status();
-    JsonObject fields;
-    fields.Add("policy_version", s.policy_version())
-        .Add("env_steps", s.env_steps())
-        .Add("unrolls_received", s.unrolls_received())
-        .Add("unrolls_duplicate", s.unrolls_duplicate())
-        .Add("actor_incarnations", s.actor_incarnations())
-        .Add("queue_depth", s.queue_depth())
-        .Add("pushers_waiting", s.pushers_waiting())
-        .Add("seconds_stalled", s.seconds_stalled(), 3)
-        .Add("seconds_training", s.seconds_training(), 3)
-        .Add("batches_dropped", s.batches_dropped())
-        .Add("done", s.done());
-    const absl::Status written = WriteStatusFile(status_file, std::move(fields));
-    if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
-  };
-  std::thread watcher([&] {
-    auto last_status = std::chrono::steady_clock::time_point{};
-    while (!finished.load() && !ShutdownRequested()) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      if (std::chrono::steady_clock::now() - last_status > std::chrono::seconds(1)) {
-        last_status = std::chrono::steady_clock::now();
-        write_status();
-      }
-    }
-    (*learner)->Stop();
-  });
-  const absl::Status run = (*learner)->Run();
-  finished.store(true);
-  watcher.join();
-  // After the budget, keep answering for a moment so that actors learn it is
-  // done (OUT_OF_RANGE on push, done in GetStatus) instead of retrying.
-  const auto linger_end = std::chrono::steady_clock::now() +
-                          std::chrono::duration<double>(absl::GetFlag(FLAGS_linger_seconds));
-  while (run.ok() && (*learner)->Status().done() && !ShutdownRequested() &&
-         std::chrono::steady_clock::now() < linger_end) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  const absl::Status run = TrainWhileServing(learner->get(), status_file, absl::GetFlag(FLAGS_linger_seconds));
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(3)));
-  write_status();
+  WriteLearnerStatus(status_file, **learner);
   if (!run.ok()) return Fail(absl::StrCat("training failed: ", run.message()));
   const v1::LearnerStatus status = (*learner)->Status();
   std::fprintf(stderr, "learner: stopped at %lld env steps, policy version %lld\n",
