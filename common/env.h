@@ -107,7 +107,7 @@ class Scenario {
   // message names the offending element, e.g. "cell of agent 1".
   absl::Status ValidateState(const int32_t* state) const;
 
-  // Multi-line text picture (docs/observations.md legend; agents '1'.., the prey 'P',
+  // Multi-line text picture (docs/scenarios.md legend; agents '1'.., the prey 'P',
   // an open door '/', a collected treasure or pressed button shown as floor
   // or as the agent on it), then "t=.. z=..".
   std::string Render(const int32_t* state) const;

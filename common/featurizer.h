@@ -8,7 +8,7 @@
 namespace imca::env {
 
 // The one encoder from compact states to network inputs, used by every
-// process so that all featurise identically (docs/observations.md).
+// process so that all featurise identically (docs/scenarios.md).
 //
 // Observation of agent a (policy input), obs_dim floats:
 //   [row one-hot H | col one-hot W] for agent a, then for agents a+1, ...,

@@ -11,7 +11,7 @@
 namespace imca::env {
 
 // A gridworld layout read from an ASCII map file. One legend for every
-// scenario (docs/observations.md); one character per cell, every row the same width:
+// scenario (docs/scenarios.md); one character per cell, every row the same width:
 //   '#' wall              '.' floor
 //   '1'..'9' fixed spawn of agent 1..9      'S' random agent spawn
 //   'T' treasure          'X' button        'Z' prey zone (prey spawns and moves only here)

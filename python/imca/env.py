@@ -25,7 +25,7 @@ info (every array has E rows, in env order):
 (reset's info has the first three.)
 
 The environments are the services' C++ scenarios and featuriser
-(docs/observations.md): a policy trained here acts in the actors, and the
+(docs/scenarios.md): a policy trained here acts in the actors, and the
 compact states go to the reward server as they are.
 """
 import math
