@@ -49,6 +49,9 @@ absl::Status ValidateActorId(absl::string_view actor_id);
 // recorded probability of the recorded action (floored at 1e-12, within a
 // relative 1e-3); rewards within kMaxAbsReward. Returns INVALID_ARGUMENT whose message names the field and element
 // (e.g. "unroll.actions[12]: 7 not in [0, 5)"). Pure; thread-safe.
+// Joint env steps (transitions per agent) an unroll holds: length x envs.
+inline int64_t UnrollSteps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); }
+
 absl::Status ValidateUnroll(const v1::Unroll& unroll, const env::Scenario& scenario,
                             const UnrollNeeds& needs);
 

@@ -1,17 +1,15 @@
 #include "learner/learner.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <limits>
-#include <sstream>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "common/atomic_file.h"
+#include "absl/container/flat_hash_map.h"
 #include "common/enum_names.h"
 #include "common/status_macros.h"
 #include "common/unroll_check.h"
@@ -37,8 +35,6 @@ double Mean(const std::deque<T>& values) {
   for (T v : values) sum += v;
   return sum / values.size();
 }
-
-int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); }
 
 }  // namespace
 
@@ -221,7 +217,7 @@ void Learner::RegisterMetrics() {
     s.Set(kQueueDepth, static_cast<double>(queue.depth));
     s.Set(kQueuedSteps, static_cast<double>(queue.queued_steps));
     s.Set(kPushersWaiting, static_cast<double>(queue.pushers_waiting));
-    s.Set(kActorIds, static_cast<double>(queue.actors.size()));
+    s.Set(kActorIds, static_cast<double>(queue.actor_ids));
     s.Set(kIncarnations, static_cast<double>(queue.incarnations));
     s.Set(kBudgetDone, done_ ? 1.0 : 0.0);
     s.Set(kStalled, SecondsStalled(now, queue.depth));
@@ -248,7 +244,7 @@ absl::Status Learner::Validate(const v1::Unroll& unroll) const {
   IMCA_RETURN_IF_ERROR(ValidateUnroll(unroll, *scenario_, {true, true, config_.edti}));
   // A batch gathers unrolls until it holds batch_steps, so the largest is
   // batch_steps - 1 steps plus this unroll.
-  const int64_t steps = int64_t{unroll.length()} * unroll.num_envs();
+  const int64_t steps = UnrollSteps(unroll);
   if (const int64_t bytes = IterationBytes(config_.batch_steps - 1 + steps); bytes > config_.max_batch_bytes) {
     return absl::ResourceExhaustedError(absl::StrFormat(
         "unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of features here, "
@@ -307,7 +303,7 @@ v1::LearnerStatus Learner::Status() const {
   status.set_unrolls_duplicate(queue.duplicate);
   status.set_actor_incarnations(queue.incarnations);
   status.set_minibatches_skipped(minibatches_skipped_);
-  for (const std::string& actor : queue.actors) status.add_actors_seen(actor);
+  for (const std::string& actor : queue_.ActorIds()) status.add_actors_seen(actor);
   return status;
 }
 
@@ -366,7 +362,7 @@ absl::Status Learner::Run() {
       }
       IMCA_RETURN_IF_ERROR(added);
       lap = Clock::now();
-      steps += Steps(queued->unroll);
+      steps += UnrollSteps(queued->unroll);
       unrolls.push_back(std::move(queued->unroll));
     }
     if (steps < config_.batch_steps) {
@@ -435,7 +431,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
     version = version_;
   }
   for (const v1::Unroll& u : unrolls) {
-    steps += Steps(u);
+    steps += UnrollSteps(u);
     lag += static_cast<double>(version - u.policy_version()) / unrolls.size();
     if (!refused) policy_lag_->Observe(static_cast<double>(version - u.policy_version()));
   }
@@ -567,16 +563,14 @@ absl::Status Learner::SaveCheckpoint() {
   meta.set_env_steps(s.env_steps());
   meta.set_wall_seconds(s.wall_seconds());
   meta.set_iteration(iteration_);
-  {
-    // The newest trained unroll of each actor incarnation, so that a
-    // restarted learner still recognises resends of what it trained (and
-    // takes again what was only queued: that was lost with the process).
-    for (const auto& [actor, accepted] : queue_.Trained()) {
-      v1::CheckpointMeta::Trained* trained = meta.add_trained();
-      trained->set_actor_id(actor);
-      trained->set_incarnation(accepted.incarnation);
-      trained->set_sequence(accepted.sequence);
-    }
+  // The newest trained unroll of each actor incarnation, so that a
+  // restarted learner still recognises resends of what it trained (and
+  // takes again what was only queued: that was lost with the process).
+  for (const auto& [actor, accepted] : queue_.Trained()) {
+    v1::CheckpointMeta::Trained* trained = meta.add_trained();
+    trained->set_actor_id(actor);
+    trained->set_incarnation(accepted.incarnation);
+    trained->set_sequence(accepted.sequence);
   }
   IMCA_RETURN_IF_ERROR(checkpoints_->Save(meta, [this](const std::string& path) { return algorithm_->Save(path); }));
   // The newest policy as a serialized imca.v1.Policy, for tools in any language.

@@ -6,14 +6,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
 #include "common/status_macros.h"
+#include "common/unroll_check.h"
 
 namespace imca::learner {
-namespace {
-
-int64_t Steps(const v1::Unroll& u) { return int64_t{u.length()} * u.num_envs(); }
-
-}  // namespace
-
 UnrollQueue::UnrollQueue(Options options) : options_(std::move(options)) {}
 
 absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
@@ -41,7 +36,7 @@ absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& c
   // Not queued after all: its steps no longer count towards this version's
   // batch, and a resend of it is not a duplicate.
   const auto withdraw = [&]() ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
-    if (options_.synchronous && version_ == admitted_version) version_steps_ -= Steps(queued.unroll);
+    if (options_.synchronous && version_ == admitted_version) version_steps_ -= UnrollSteps(queued.unroll);
   };
   // No wait without a timeout: every second, whether the pusher is still there.
   bool gone = false;
@@ -71,14 +66,14 @@ absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& c
   }
   Accept(queued.unroll);
   if (options_.on_accept) options_.on_accept(queued.unroll);
-  stats_.queued_steps += Steps(queued.unroll);
+  stats_.queued_steps += UnrollSteps(queued.unroll);
   queue_.push_back(std::move(queued));
   return absl::OkStatus();
 }
 
 void UnrollQueue::Accept(const v1::Unroll& u) {
   ++stats_.received;
-  stats_.actors.insert(u.actor_id());
+  if (actors_.insert(u.actor_id()).second) ++stats_.actor_ids;
   if (u.incarnation() == 0) return;
   auto [it, inserted] = accepted_.try_emplace(u.actor_id(), Accepted{u.incarnation(), u.sequence()});
   if (inserted || it->second.incarnation != u.incarnation()) {
@@ -93,8 +88,7 @@ void UnrollQueue::Accept(const v1::Unroll& u) {
 }
 
 absl::Status UnrollQueue::CheckActorIdRoom(const v1::Unroll& unroll) {
-  if (stats_.actors.size() >= static_cast<size_t>(options_.max_actor_ids) &&
-      stats_.actors.count(unroll.actor_id()) == 0) {
+  if (actors_.size() >= static_cast<size_t>(options_.max_actor_ids) && actors_.count(unroll.actor_id()) == 0) {
     // Each id is remembered for exactly-once delivery and reported in the
     // status: a client inventing ids must not grow them without bound.
     ++stats_.rejected;
@@ -141,7 +135,7 @@ absl::Status UnrollQueue::Admit(const v1::Unroll& unroll) {
       return absl::FailedPreconditionError(absl::StrCat("stale: the batch of policy version ", version_,
                                                         " is full (synchronous learner)"));
     }
-    version_steps_ += Steps(unroll);
+    version_steps_ += UnrollSteps(unroll);
   } else if (TooOld(unroll)) {
     ++stats_.stale;
     return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
@@ -167,7 +161,7 @@ std::optional<FeaturisedUnroll> UnrollQueue::Next(int* dropped_stale) {
     if (closed_) return std::nullopt;
     FeaturisedUnroll queued = std::move(queue_.front());
     queue_.pop_front();
-    stats_.queued_steps -= Steps(queued.unroll);
+    stats_.queued_steps -= UnrollSteps(queued.unroll);
     if (TooOld(queued.unroll)) {
       ++stats_.stale;
       ++*dropped_stale;
@@ -211,6 +205,11 @@ void UnrollQueue::Close(bool budget_done) {
   absl::MutexLock lock(&mu_);
   closed_ = true;
   budget_done_ = budget_done;
+}
+
+std::vector<std::string> UnrollQueue::ActorIds() const {
+  absl::MutexLock lock(&mu_);
+  return std::vector<std::string>(actors_.begin(), actors_.end());
 }
 
 UnrollQueue::Stats UnrollQueue::stats() const {

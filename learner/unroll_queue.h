@@ -64,7 +64,7 @@ class UnrollQueue {
     int32_t depth = 0;         // Unrolls queued.
     int64_t queued_steps = 0;  // Their joint env steps.
     int32_t pushers_waiting = 0;  // Pushes blocked on a full queue.
-    std::set<std::string> actors;  // Every actor id seen.
+    int64_t actor_ids = 0;        // Actor ids seen (ActorIds lists them).
   };
 
   explicit UnrollQueue(Options options);
@@ -98,6 +98,8 @@ class UnrollQueue {
   // and wakes every waiter. Non-blocking.
   void Close(bool budget_done);
   Stats stats() const;
+  // Every actor id seen, sorted.
+  std::vector<std::string> ActorIds() const;
 
  private:
   // Push's checks of the version, staleness, duplicates and ids.
@@ -123,6 +125,8 @@ class UnrollQueue {
   int64_t version_steps_ ABSL_GUARDED_BY(mu_) = 0;
   std::deque<FeaturisedUnroll> queue_ ABSL_GUARDED_BY(mu_);
   Stats stats_ ABSL_GUARDED_BY(mu_);
+  // At most options_.max_actor_ids (Push refuses one more).
+  std::set<std::string> actors_ ABSL_GUARDED_BY(mu_);
   absl::flat_hash_map<std::string, Accepted> accepted_ ABSL_GUARDED_BY(mu_);
   absl::flat_hash_map<std::string, Accepted> trained_ ABSL_GUARDED_BY(mu_);
 };

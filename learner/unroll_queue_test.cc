@@ -85,7 +85,8 @@ TEST_F(UnrollQueueTest, RefusesEachReasonWithItsCodeAndCountsIt) {
   EXPECT_EQ(s.stale, 1);
   EXPECT_EQ(s.received, 4);
   EXPECT_EQ(s.incarnations, 4);
-  EXPECT_EQ(s.actors, (std::set<std::string>{"a", "b", "c"}));
+  EXPECT_EQ(s.actor_ids, 3);
+  EXPECT_EQ(q.ActorIds(), (std::vector<std::string>{"a", "b", "c"}));
 }
 
 TEST_F(UnrollQueueTest, NextDropsWhatAgedPastTheLagWhileQueued) {
