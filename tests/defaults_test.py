@@ -6,21 +6,18 @@ For every scenario: each bare binary started with only --scenario resolves
 records in config.json ("resolved", and the flat settings it shows); and the
 deploy manifests pass only what a user overrides: wiring (addresses, files,
 secrets, restart behaviour) and ./imca train's options set to something
-other than the binary's default. A default re-stated in tools/launch.py or
+other than the binary's default. A default re-stated in tools/ or
 deploy/, or changed in one home only, fails here.
 """
 import json
 import os
 import subprocess
-import sys
 import unittest
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-sys.path.insert(0, os.path.join(ROOT, "tests"))
-import launch  # noqa: E402
-import deploy_test  # noqa: E402  (the manifests' services, as its tests read them)
+import deploy_test  # the manifests' services, as its tests read them (tests/, this script's folder)
+from imca_tools import binaries, options, plan
 
 # Flags that say where a process runs and how it is wired or supervised, not
 # what it trains: a deployment sets them for itself.
@@ -39,7 +36,7 @@ COMMON_WIRING = {"tls_cert", "tls_key", "tls_ca", "tls_client_auth", "tls_server
 
 
 # ./imca train flag -> {program: the binary's flag}.
-PROGRAMS_OF = {flag: programs for flag, programs, _ in launch.OPTIONS}
+PROGRAMS_OF = {flag: programs for flag, programs, _ in options.OPTIONS}
 
 
 def print_config(program, flags):
@@ -52,14 +49,14 @@ def print_config(program, flags):
 
 def overrides(program):
     """{binary flag: ./imca train flag} of the options a user can override."""
-    return {programs[program]: flag for flag, programs, _ in launch.OPTIONS if program in programs}
+    return {programs[program]: flag for flag, programs, _ in options.OPTIONS if program in programs}
 
 
 class OneHomeTest(unittest.TestCase):
     def check_scenario(self, scenario, extra=()):
-        args = launch.parse_args(["--scenario", scenario, *extra])
-        flags, config = launch.plan(args)
-        for program in launch.PROGRAMS:
+        args = plan.parse_args(["--scenario", scenario, *extra])
+        flags, config = plan.plan(args)
+        for program in binaries.PROGRAMS:
             with self.subTest(scenario=scenario, program=program, extra=extra):
                 bare = print_config(program, [f"--scenario={scenario}"] + [
                     f"--{PROGRAMS_OF[flag][program]}={value}" for flag, value in zip(extra[::2], extra[1::2])
@@ -68,10 +65,10 @@ class OneHomeTest(unittest.TestCase):
                 # The settings config.json shows are the ones the binary runs.
                 for name, flag in overrides(program).items():
                     if name in bare:
-                        self.assertEqual(config[launch.dest(flag)], bare[name], f"config.json {launch.dest(flag)}")
+                        self.assertEqual(config[options.dest(flag)], bare[name], f"config.json {options.dest(flag)}")
 
     def test_bare_binaries_resolve_what_imca_train_runs(self):
-        for scenario in launch.facts()["scenarios"]:
+        for scenario in binaries.facts()["scenarios"]:
             self.check_scenario(scenario)
 
     def test_the_algorithm_and_reward_kind_defaults_too(self):
@@ -79,7 +76,7 @@ class OneHomeTest(unittest.TestCase):
         self.check_scenario("pass", ("--reward", "eiti"))
 
     def test_list_prints_what_print_config_resolves(self):
-        known = launch.facts()
+        known = binaries.facts()
         for scenario in ("coop_nav", "predator_prey"):
             self.assertEqual(known["learner_defaults"]["mappo"][scenario],
                              print_config("learner", [f"--scenario={scenario}"]))
@@ -87,7 +84,7 @@ class OneHomeTest(unittest.TestCase):
         self.assertEqual(known["reward_defaults"]["rnd"], print_config("reward_server", ["--reward=rnd"]))
 
     def test_print_config_passed_back_resolves_the_same(self):
-        for program in launch.PROGRAMS:
+        for program in binaries.PROGRAMS:
             first = print_config(program, ["--scenario=coop_nav"])
             flags = [f"--{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in first.items()]
             self.assertEqual(print_config(program, ["--scenario=coop_nav"] + flags), first, program)
@@ -110,7 +107,7 @@ class ManifestsPassOnlyOverridesTest(unittest.TestCase):
         self.check_actor_count(services)
         for service in services.values():
             program = service.binary
-            scenario = service.flag("scenario") or launch.facts()["default_scenario"]
+            scenario = service.flag("scenario") or binaries.facts()["default_scenario"]
             resolved = print_config(program, [a for a in service.args if a.split("=")[0] in
                                               ("--scenario", "--algo", "--reward")])
             user = overrides(program)

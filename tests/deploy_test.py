@@ -16,7 +16,6 @@ import re
 import shlex
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 import unittest
@@ -24,10 +23,10 @@ import urllib.request
 
 import yaml
 
+from imca_tools import binaries, runs, supervisor
+
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import launch  # noqa: E402  (the launcher's process handling)
 
 os.environ["IMCA_MAP_DIR"] = os.path.join(ROOT, "maps")  # The services' children inherit it.
 COMPOSE = os.path.join(ROOT, "deploy", "docker-compose.yml")
@@ -168,18 +167,18 @@ def under_mount(path, mounts):
 
 class Deployment:
     """A deployment's services as local processes over loopback, started and
-    stopped by the launcher's own process handling (tools/launch.py)."""
+    stopped by the launcher's own process handling (imca_tools.supervisor)."""
 
     def __init__(self, services, tmp):
         self.by_binary = by_binary(services)
         self.tmp = tmp
         self.ports = {}
-        self.procs = launch.Services(tmp)  # Logs in tmp/logs/<name>.log.
+        self.procs = supervisor.Services(tmp)  # Logs in tmp/logs/<name>.log.
         # The secrets an operator makes with tools/make_certs.sh (client
         # "actor"), where the deployment mounts them.
         folders = {os.path.dirname(s.flag(f)) for s in services.values() for f in TLS_FILE_FLAGS if s.flag(f)}
         for folder in folders:
-            subprocess.run([os.path.join(ROOT, "tools", "make_certs.sh"), tmp + folder, "actor", "probe"], check=True)
+            subprocess.run([binaries.MAKE_CERTS, tmp + folder, "actor", "probe"], check=True)
 
     def local_args(self, service, steps):
         """The service's flags with cluster paths, addresses and budget made local."""
@@ -252,7 +251,7 @@ class Deployment:
         return read(os.path.join(self.tmp, "logs", name + ".log"))
 
     def metrics(self, run_dir):
-        return launch.read_metrics(os.path.join(self.tmp + run_dir, "metrics.csv"))
+        return runs.read_metrics(os.path.join(self.tmp + run_dir, "metrics.csv"))
 
 
 class DeployTestBase:
@@ -495,7 +494,7 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                    and d["spec"]["template"]["spec"]["containers"][0]["command"] == ["actor"])
         rules = job["spec"]["podFailurePolicy"]["rules"]
         self.assertIn({"action": "FailJob", "onExitCodes": {"containerName": "actor", "operator": "In",
-                                                            "values": [launch.exit_refused()]}}, rules)
+                                                            "values": [binaries.exit_refused()]}}, rules)
 
     def test_actor_job_has_no_completion_count(self):
         # Work-queue style: the Job ends when the actors exit after the budget,

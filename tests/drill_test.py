@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Kill-and-count drills: ./imca train survives the death of any of its processes.
 
-Each drill starts a real run through tools/launch.py, kills one process with
+Each drill starts a real run through ./imca train (imca_tools.train), kills one process with
 SIGKILL (or stops it with SIGSTOP, for the stall detector) mid-run, lets the
 run reach its budget, and then counts: the run exits 0, the restart is
 counted, and what each role promises (docs/reliability.md) holds.
@@ -11,18 +11,18 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import tempfile
 import time
 import unittest
 
+from imca_tools import binaries
+from imca_tools.supervisor import run_processes  # a run's live processes by name
+
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
+LAUNCH = binaries.module_argv("train")
 SMALL = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--batch-steps", "1024", "--quiet",
          "--checkpoint-seconds", "1", "--snapshot-every", "2"]
 BUDGET = 400_000
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import bench  # noqa: E402  (run_processes: a run's live processes by name)
 
 
 def read_json(path):
@@ -55,7 +55,7 @@ class Drill:
         raise AssertionError("no progress")
 
     def signal(self, name, sig):
-        pid = bench.run_processes(self.run_dir).get(name)
+        pid = run_processes(self.run_dir).get(name)
         assert pid is not None, f"no {name} running"
         os.kill(pid, sig)
         return pid

@@ -1,19 +1,19 @@
 #!/usr/bin/python3
-"""./imca experiment (tools/experiment.py) against the real binaries."""
+"""./imca experiment (imca_tools.experiment) against the real binaries."""
 import csv
 import json
 import os
 import signal
 import subprocess
-import sys
 import tempfile
 import time
 import unittest
 
+from imca_tools import binaries, experiment
+from imca_tools.experiment import cell_id  # where a cell's run folder is
+
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-EXPERIMENT = [sys.executable, os.path.join(ROOT, "tools", "experiment.py")]
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-from experiment import cell_id  # noqa: E402  (where a cell's run folder is)
+EXPERIMENT = binaries.module_argv("experiment")
 
 SMALL = {"actors": 1, "envs-per-actor": 8, "unroll-length": 32, "batch-steps": 1024}
 
@@ -33,7 +33,6 @@ def grid_file(directory, entries, name="tiny"):
 
 class PresetsTest(unittest.TestCase):
     def test_maddpg_rows_parse_and_are_labelled_by_their_algorithm(self):
-        import experiment
         for preset in ("paper", "edti"):
             cells = experiment.expand(experiment.presets()[preset]["entries"], preset)
             experiment.check_flags(cells)  # Every cell's flags are valid ./imca train flags.

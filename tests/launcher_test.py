@@ -1,20 +1,19 @@
 #!/usr/bin/python3
-"""./imca train's launcher (tools/launch.py) against the real binaries."""
+"""./imca train (imca_tools.train, its plan and supervisor) against the real binaries."""
 import csv
 import json
 import os
 import signal
 import socket
 import subprocess
-import sys
 import tempfile
 import time
 import unittest
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import launch  # noqa: E402
+from imca_tools import binaries, options, plan, runs, supervisor
+
+LAUNCH = binaries.module_argv("train")
 SMALL = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--batch-steps", "1024", "--quiet"]
 
 
@@ -32,9 +31,9 @@ class LauncherErrorsTest(unittest.TestCase):
             self.assertIn(flag, r.stderr)
 
     def test_flags_take_underscores_as_hyphens(self):
-        args = launch.parse_args(["--num_agents", "3", "--scenario=spread", "--door_timer=2", "--batch-steps", "64"])
+        args = plan.parse_args(["--num_agents", "3", "--scenario=spread", "--door_timer=2", "--batch-steps", "64"])
         self.assertEqual((args.num_agents, args.scenario, args.door_timer, args.batch_steps), (3, "spread", 2, 64))
-        self.assertEqual(launch.dashed(["--a_b=c_d", "x_y", "--", "--e_f"]), ["--a-b=c_d", "x_y", "--", "--e_f"])
+        self.assertEqual(options.dashed(["--a_b=c_d", "x_y", "--", "--e_f"]), ["--a-b=c_d", "x_y", "--", "--e_f"])
         r = run(["--no_such_flag"])
         self.assertEqual(r.returncode, 2)
         self.assertIn("--no-such-flag", r.stderr)
@@ -60,35 +59,35 @@ class LauncherErrorsTest(unittest.TestCase):
 
 class LauncherDefaultsTest(unittest.TestCase):
     def test_defaults_are_the_binaries_and_nothing_is_restated(self):
-        args = launch.parse_args([])  # coop_nav.
+        args = plan.parse_args([])  # coop_nav.
         self.assertEqual((args.sync, args.batch_steps, args.unroll_length, args.separate_optimizers, args.lr),
                          (True, 2048, 32, True, 1e-3))
         # Nothing given, nothing passed: each binary resolves its own defaults.
-        for program in launch.PROGRAMS:
-            self.assertEqual(launch.program_flags(args, program), [], program)
-        pp = launch.parse_args(["--scenario", "predator_prey"])
+        for program in binaries.PROGRAMS:
+            self.assertEqual(options.program_flags(args, program), [], program)
+        pp = plan.parse_args(["--scenario", "predator_prey"])
         self.assertEqual((pp.batch_steps, pp.unroll_length, pp.separate_optimizers, pp.lr), (1024, 16, False, 5e-4))
-        self.assertEqual(launch.program_flags(pp, "actor"), ["--scenario=predator_prey"])
+        self.assertEqual(options.program_flags(pp, "actor"), ["--scenario=predator_prey"])
         # A flag given wins over the scenario's default, and is passed on.
-        given = launch.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])
+        given = plan.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])
         self.assertTrue(given.separate_optimizers)
-        self.assertIn("--separate_optimizers=true", launch.program_flags(given, "learner"))
-        self.assertEqual(launch.parse_args(["--lr", "2e-4"]).lr, 2e-4)
-        old = launch.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
+        self.assertIn("--separate_optimizers=true", options.program_flags(given, "learner"))
+        self.assertEqual(plan.parse_args(["--lr", "2e-4"]).lr, 2e-4)
+        old = plan.parse_args(["--sync", "false", "--separate-optimizers", "false", "--batch-steps", "8192",
                                  "--unroll-length", "64"])
-        self.assertEqual(launch.program_flags(old, "learner"),
+        self.assertEqual(options.program_flags(old, "learner"),
                          ["--batch_steps=8192", "--separate_optimizers=false", "--synchronous=false"])
-        self.assertEqual(launch.program_flags(old, "actor"), ["--unroll_length=64"])
+        self.assertEqual(options.program_flags(old, "actor"), ["--unroll_length=64"])
 
     def test_maddpg_acts_asynchronously_and_keeps_old_unrolls(self):
-        args = launch.parse_args(["--algo", "maddpg", "--scenario", "spread", "--updates-per-step", "0.02"])
+        args = plan.parse_args(["--algo", "maddpg", "--scenario", "spread", "--updates-per-step", "0.02"])
         self.assertFalse(args.sync)
-        flags = launch.program_flags(args, "learner")
+        flags = options.program_flags(args, "learner")
         self.assertIn("--algo=maddpg", flags)
         self.assertIn("--updates_per_step=0.02", flags)
         self.assertFalse(any(f.startswith("--synchronous") for f in flags))
         # Asked for, synchronous collection is kept.
-        self.assertTrue(launch.parse_args(["--algo", "maddpg", "--sync", "true"]).sync)
+        self.assertTrue(plan.parse_args(["--algo", "maddpg", "--sync", "true"]).sync)
         for bad, flag in [(["--algo", "ppo"], "--algo"),
                           (["--algo", "maddpg", "--scenario", "pass", "--reward", "edti"], "--algo")]:
             r = run(bad)
@@ -110,9 +109,9 @@ class LauncherDefaultsTest(unittest.TestCase):
         self.assertIn("--actors", r.stderr)
 
     def test_eiti_runs_with_its_own_credit_and_scale(self):
-        args = launch.parse_args(["--scenario", "pass", "--reward", "eiti"])
+        args = plan.parse_args(["--scenario", "pass", "--reward", "eiti"])
         self.assertEqual((args.credit, args.beta, args.eta, args.beta_t), ("independent", 1.0, 10.0, 10.0))
-        self.assertEqual(launch.parse_args(["--scenario", "pass", "--door-timer", "0"]).door_timer, 0)
+        self.assertEqual(plan.parse_args(["--scenario", "pass", "--door-timer", "0"]).door_timer, 0)
         for bad, flag in [(["--reward", "eiti", "--credit", "imca"], "--credit"),
                           (["--scenario", "pass", "--door-timer", "31"], "--door-timer")]:
             r = run(bad)
@@ -126,17 +125,17 @@ class LauncherDefaultsTest(unittest.TestCase):
             for recorded in ({}, {"separate_optimizers": None}):
                 with open(os.path.join(run_dir, "config.json"), "w") as f:
                     json.dump({"batch_steps": 8192, "unroll_length": 64, **recorded}, f)
-                args = launch.parse_args(["--resume", run_dir])
+                args = plan.parse_args(["--resume", run_dir])
                 self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (False, False, 8192))
             with open(os.path.join(run_dir, "config.json"), "w") as f:
                 json.dump({"batch_steps": 2048, "unroll_length": 16, "sync": True, "separate_optimizers": True}, f)
-            args = launch.parse_args(["--resume", run_dir])
+            args = plan.parse_args(["--resume", run_dir])
             self.assertEqual((args.sync, args.separate_optimizers, args.batch_steps), (True, True, 2048))
             # Passed on explicitly: it resumes as it ran, whatever the defaults are now.
-            self.assertIn("--batch_steps=2048", launch.program_flags(args, "learner"))
-            self.assertIn("--unroll_length=16", launch.program_flags(args, "actor"))
+            self.assertIn("--batch_steps=2048", options.program_flags(args, "learner"))
+            self.assertIn("--unroll_length=16", options.program_flags(args, "actor"))
             # A folder from before --algo trained MAPPO, whatever the command line says.
-            self.assertEqual(launch.parse_args(["--resume", run_dir, "--algo", "maddpg"]).algo, "mappo")
+            self.assertEqual(plan.parse_args(["--resume", run_dir, "--algo", "maddpg"]).algo, "mappo")
 
 
 class StepsToSuccessTest(unittest.TestCase):
@@ -145,13 +144,13 @@ class StepsToSuccessTest(unittest.TestCase):
         rows = [{"env_steps": "1024", "success_rate": "1.0", "success_episodes": "1"},
                 {"env_steps": "2048", "success_rate": "0.5", "success_episodes": "200"},
                 {"env_steps": "3072", "success_rate": "0.95", "success_episodes": "200"}]
-        self.assertEqual(launch.steps_to(rows, 0.9), 3072)
-        self.assertIsNone(launch.steps_to(rows[:2], 0.9))
+        self.assertEqual(runs.steps_to(rows, 0.9), 3072)
+        self.assertIsNone(runs.steps_to(rows[:2], 0.9))
 
     def test_runs_without_the_window_column_read_as_before(self):
         rows = [{"env_steps": "1024", "train_success_rate": "0.2"},
                 {"env_steps": "2048", "train_success_rate": "0.9"}]
-        self.assertEqual(launch.steps_to(rows, 0.9, "train_success_rate"), 2048)
+        self.assertEqual(runs.steps_to(rows, 0.9, "train_success_rate"), 2048)
 
 
 class LauncherRunTest(unittest.TestCase):
@@ -172,7 +171,7 @@ class LauncherRunTest(unittest.TestCase):
             # The windows fill up as episodes end, never beyond their size.
             fills = [int(r["train_success_episodes"]) for r in rows]
             self.assertEqual(fills, sorted(fills))
-            self.assertLessEqual(fills[-1], launch.facts()["success_window"])
+            self.assertLessEqual(fills[-1], binaries.facts()["success_window"])
             self.assertGreater(max(float(r["intrinsic_reward"]) for r in rows), 0.0)
             with open(os.path.join(out, "summary.json")) as f:
                 summary = json.load(f)
@@ -204,10 +203,10 @@ class LauncherRunTest(unittest.TestCase):
 
     def test_a_refused_client_ends_the_run_instead_of_being_restarted(self):
         with tempfile.TemporaryDirectory() as tmp:
-            services = launch.Services(tmp, max_restarts=5)
+            services = supervisor.Services(tmp, max_restarts=5)
             services.start("actor-0", ["/bin/sh", "-c", "echo 'learner refused this client'; exit 3"])
             services.proc("actor-0").wait()
-            with self.assertRaises(launch.LaunchError) as raised:
+            with self.assertRaises(binaries.LaunchError) as raised:
                 services.supervise(["actor-0"])
             self.assertIn("actor-0 was refused by a server (exit 3): learner refused this client", str(raised.exception))
             self.assertEqual(services.restarts["actor-0"], 0)

@@ -27,10 +27,10 @@ import urllib.request
 
 from prometheus_client.parser import text_string_to_metric_families
 
+from imca_tools import binaries, runs
+
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import launch  # noqa: E402
 
 ACTORS = 2
 STEPS = 1_000_000
@@ -201,7 +201,7 @@ class PrometheusScrapeTest(unittest.TestCase):
         cls.run_dir = os.path.join(cls.tmp, "run")
         cls.train_log = open(os.path.join(cls.tmp, "train.log"), "w")
         cls.train = subprocess.Popen(
-            [sys.executable, os.path.join(ROOT, "tools", "launch.py"), f"--steps={STEPS}", f"--actors={ACTORS}",
+            [*binaries.module_argv("train"), f"--steps={STEPS}", f"--actors={ACTORS}",
              f"--metrics-port={cls.base}", f"--out={cls.run_dir}", "--quiet"],
             stdout=cls.train_log, stderr=subprocess.STDOUT)
         # Mid-run: each endpoint's text once the learner trains, and what
@@ -320,7 +320,7 @@ class PrometheusScrapeTest(unittest.TestCase):
         wall_seconds between the rows holding the same env_steps) agree."""
         self.assertEqual(len(self.samples), 1)
         points = [(float(t), float(v)) for t, v in self.samples[0]["values"]]
-        rows = launch.read_metrics(os.path.join(self.run_dir, "metrics.csv"))
+        rows = runs.read_metrics(os.path.join(self.run_dir, "metrics.csv"))
         wall = {int(r["env_steps"]): float(r["wall_seconds"]) for r in rows}
         final = max(v for _, v in points)
         # The steady part: past a fifth of the budget (start-up), before the
@@ -373,7 +373,7 @@ class OneDefinitionTest(unittest.TestCase):
     def test_each_exported_family_is_defined_once_in_cpp(self):
         # The learner's column families, as it reports them, and below every
         # name the sources spell.
-        names = {c["prometheus"] for c in launch.facts()["metrics_columns"] if c["prometheus"]}
+        names = {c["prometheus"] for c in binaries.facts()["metrics_columns"] if c["prometheus"]}
         sources = []
         for folder in ("common", "learner", "reward_server", "actor", "nn", "envtool"):
             for dirpath, _, files in os.walk(os.path.join(ROOT, folder)):
@@ -390,19 +390,21 @@ class OneDefinitionTest(unittest.TestCase):
             self.assertEqual(len(places), 1, f"{name} is spelled in {places}")
 
     def test_the_tools_copy_no_scenario_reward_credit_or_permutation_list(self):
-        known = launch.facts()
+        known = binaries.facts()
         # A line naming every credit mode (or permutation, reward kind, or
         # most scenarios) is a copy of the list; a grid choosing some is not.
         lists = {"scenario": (known["scenarios"], 4), "reward": (list(known["rewards"]), len(known["rewards"])),
                  "credit": (known["credits"], len(known["credits"])),
                  "permutation": (known["permutations"], len(known["permutations"]))}
-        for name in sorted(os.listdir(os.path.join(ROOT, "tools"))):
-            if not name.endswith(".py"):
-                continue
-            for n, line in enumerate(read(os.path.join(ROOT, "tools", name)).splitlines(), 1):
+        tools = os.path.join(ROOT, "tools")
+        sources = sorted(os.path.relpath(os.path.join(folder, f), ROOT) for folder, _, files in os.walk(tools)
+                         for f in files if f.endswith(".py"))
+        self.assertIn("tools/imca_tools/train.py", sources)
+        for name in sources:
+            for n, line in enumerate(read(os.path.join(ROOT, name)).splitlines(), 1):
                 for what, (values, copied) in lists.items():
                     quoted = [v for v in values if re.search(rf'["\']{re.escape(v)}["\']', line)]
-                    self.assertLess(len(quoted), copied, f"tools/{name}:{n} copies the {what} list: {line.strip()}")
+                    self.assertLess(len(quoted), copied, f"{name}:{n} copies the {what} list: {line.strip()}")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ place only fails here.
 import os
 import re
 import subprocess
-import sys
 import tempfile
 import unittest
 

@@ -1,4 +1,3 @@
-#!/usr/bin/python3
 """./imca bench speed|env|reward|learn|soak|drill|python: benchmarks run by hand (never in CI).
 
 speed  component ceilings (bench_speed) and end-to-end training throughput,
@@ -27,6 +26,7 @@ python the Python package against the C++ it wraps, in one run: joint env
 import argparse
 import csv
 import datetime
+import importlib.util
 import json
 import os
 import shutil
@@ -36,21 +36,21 @@ import subprocess
 import sys
 import time
 
-ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-LAUNCH = [sys.executable, os.path.join(ROOT, "tools", "launch.py")]
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import launch  # noqa: E402  (the metrics reader and success thresholds of ./imca train)
+from . import binaries, options, runs
+from .binaries import BIN, ROOT
+from .supervisor import run_processes
+
+LAUNCH = binaries.module_argv("train")
 
 
 # ./imca train's defaults before the learner ablation, and before the concurrent critic.
-V1_FLAGS = [word for key, value in launch.V1_DEFAULTS.items()
+V1_FLAGS = [word for key, value in runs.V1_DEFAULTS.items()
             for word in (f"--{key.replace('_', '-')}", str(value).lower())] + ["--concurrent-critic", "false"]
 
 
 def finished_run(out, budget):
     """(summary, rows) of a run folder that reached `budget` uninterrupted, else None."""
-    summary = launch.finished_summary(out, budget)
+    summary = runs.finished_summary(out, budget)
     if summary is None:
         return None
     with open(os.path.join(out, "metrics.csv")) as f:
@@ -60,7 +60,8 @@ def finished_run(out, budget):
 def train(out, extra):
     if os.path.exists(out):
         shutil.rmtree(out)  # An unfinished run starts over.
-    r = subprocess.run(LAUNCH + ["--out", out, "--quiet"] + extra, capture_output=True, text=True)
+    r = subprocess.run(LAUNCH + ["--out", out, "--quiet"] + extra, capture_output=True, text=True,
+                       env=binaries.module_env())
     if r.returncode != 0:
         sys.exit(f"imca bench: training failed: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
     with open(os.path.join(out, "summary.json")) as f:
@@ -150,36 +151,35 @@ def median_reached(values):
 
 def to_90(rows, key):
     """(env steps, wall seconds) at the first row with `key` >= 0.9, or (None, None)."""
-    row = launch.first_reaching(rows, 0.9, key)
+    row = runs.first_reaching(rows, 0.9, key)
     return (int(row["env_steps"]), float(row["wall_seconds"])) if row else (None, None)
 
 
 def ablation_table(args, variants, modes, seeds, results):
     """Medians over seeds; a seed that never got there counts as not reached (k/n)."""
+    window = binaries.facts()["success_window"]  # The learner's success window.
     print(f"\n{args.scenario} + {args.reward}, {args.steps:,} env steps, seeds {args.seeds}; success over the "
-          "last 200 training episodes (as marlbenchmark/on-policy) and over the last 200 evaluation episodes")
+          f"last {window} training episodes (as marlbenchmark/on-policy) and over the last {window} evaluation episodes")
     print("| variant | credit | env steps to 90%, training episodes: median (per seed) | reached "
           "| wall-clock to 90%: median | env steps to 90%, evaluation: median | final success | env steps/s |")
     print("|---|---|---|---|---|---|---|---|")
     fmt = lambda x: "-" if x is None else f"{x / 1e6:.2f}M"
     for name, _ in variants:
         for credit in modes:
-            runs = [results[(name, credit, s)] for s in seeds]
-            train = [to_90(rows, "train_success_rate") for _, rows in runs]
-            evals = [to_90(rows, "success_rate")[0] for _, rows in runs]
+            trials = [results[(name, credit, s)] for s in seeds]
+            train = [to_90(rows, "train_success_rate") for _, rows in trials]
+            evals = [to_90(rows, "success_rate")[0] for _, rows in trials]
             reached = sum(1 for steps, _ in train if steps is not None)
             wall = median_reached([w for _, w in train])
             print(f"| {name} | {credit} | {fmt(median_reached([x for x, _ in train]))} "
                   f"({' / '.join(fmt(x) for x, _ in train)}) | {reached}/{len(seeds)} "
                   f"| {'-' if wall is None else f'{wall:.1f} s'} | {fmt(median_reached(evals))} "
-                  f"| {statistics.mean(s['final_train_success_rate'] for s, _ in runs):.0%} "
-                  f"| {statistics.median(s['env_steps_per_sec'] for s, _ in runs):,.0f} |")
+                  f"| {statistics.mean(s['final_train_success_rate'] for s, _ in trials):.0%} "
+                  f"| {statistics.median(s['env_steps_per_sec'] for s, _ in trials):,.0f} |")
 
 
 def learn(args, base):
     modes = args.credits.split(",")
-
-def python_train_bench(args, base):
     seeds = [int(s) for s in args.seeds.split(",")]
     variants = load_variants(args.variants) if args.variants else [("default", [])]
     results = {}
@@ -210,15 +210,15 @@ def python_train_bench(args, base):
           "| last-quarter mean: R_i, abs r^a, max p^a |")
     print("|---|---|---|---|---|---|")
     for credit in modes:
-        runs = [results[(credit, s)] for s in seeds]
-        finals = [summary["final_success_rate"] for summary, _ in runs]
+        trials = [results[(credit, s)] for s in seeds]
+        finals = [summary["final_success_rate"] for summary, _ in trials]
         diag = []
         for key in ("global_reward", "contribution_abs", "share_max"):
-            values = [tail_mean(rows, key) for _, rows in runs]
+            values = [tail_mean(rows, key) for _, rows in trials]
             diag.append("-" if None in values else f"{statistics.mean(values):.4g}")
         print(f"| {credit} | {' / '.join(f'{x:.0%}' for x in finals)} | {statistics.mean(finals):.0%} | "
-              f"{steps(summary['steps_to_80pct_success'] for summary, _ in runs)} | "
-              f"{steps(summary['steps_to_90pct_success'] for summary, _ in runs)} | {', '.join(diag)} |")
+              f"{steps(summary['steps_to_80pct_success'] for summary, _ in trials)} | "
+              f"{steps(summary['steps_to_90pct_success'] for summary, _ in trials)} | {', '.join(diag)} |")
     print(f"\nrun folders: {base}")
 
 
@@ -233,31 +233,6 @@ def rss_bytes(pid):
     return None
 
 
-def run_processes(run_dir):
-    """{name: pid} of the live processes of a run (by the run folder in their argv)."""
-    found = {}
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/cmdline", "rb") as f:
-                argv = f.read().decode(errors="replace").split("\0")
-            with open(f"/proc/{entry}/stat") as f:
-                if f.read().split(") ")[-1].startswith("Z"):
-                    continue  # A zombie: dead, not yet reaped.
-        except OSError:
-            continue
-        binary = os.path.basename(argv[0])
-        if binary not in ("actor", "learner", "reward_server") or not any(run_dir in a for a in argv):
-            continue
-        name = binary
-        for a in argv:
-            if a.startswith("--actor_id="):
-                name = a.split("=", 1)[1]
-        found[name] = int(entry)
-    return found
-
-
 def soak(args, base):
     """16 actors (by default) for --minutes on loopback; RSS of every process
     every --every seconds; growth after --warmup minutes, the reward server's
@@ -268,7 +243,7 @@ def soak(args, base):
                                           str(args.actors), "--envs-per-actor", str(args.envs_per_actor),
                                           "--unroll-length", "16", "--batch-steps",
                                           str(args.actors * args.envs_per_actor * 16)] + args.extra,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=binaries.module_env())
     samples = []  # (seconds, {name: rss}, distinct keys, env steps)
     start = time.time()
     try:
@@ -277,8 +252,8 @@ def soak(args, base):
             if launcher.poll() is not None:
                 sys.exit(f"imca bench: the run ended: {launcher.stderr.read().strip()}")
             rss = {name: rss_bytes(pid) for name, pid in run_processes(run_dir).items()}
-            status = launch.read_json(os.path.join(run_dir, "logs", "reward_server.status.json")) or {}
-            learner = launch.read_json(os.path.join(run_dir, "logs", "learner.status.json")) or {}
+            status = runs.read_json(os.path.join(run_dir, "logs", "reward_server.status.json")) or {}
+            learner = runs.read_json(os.path.join(run_dir, "logs", "learner.status.json")) or {}
             samples.append((time.time() - start, rss, status.get("distinct_keys", 0) + status.get("distinct_local_keys", 0),
                             learner.get("env_steps", 0)))
     finally:
@@ -297,7 +272,7 @@ def soak(args, base):
     minutes = (t1 - t0) / 60
     print(f"soak: {args.actors} actors x {args.envs_per_actor} envs, {t1 / 60:.1f} min, {steps1:,} env steps "
           f"({(steps1 - steps0) / (t1 - t0):,.0f}/s after warm-up); growth from minute {t0 / 60:.1f} to {t1 / 60:.1f}")
-    print(f"\n| process | RSS at warm-up (MB) | RSS at end (MB) | growth (MB) | growth (MB/min) |")
+    print("\n| process | RSS at warm-up (MB) | RSS at end (MB) | growth (MB) | growth (MB/min) |")
     print("|---|---|---|---|---|")
     for name in sorted(rss1, key=lambda n: (not n.startswith("reward"), not n.startswith("learner"), n)):
         if rss0.get(name) is None or rss1.get(name) is None:
@@ -332,7 +307,7 @@ def drill(args, base):
     if os.path.exists(run_dir):
         shutil.rmtree(run_dir)
     launcher = subprocess.Popen(LAUNCH + ["--out", run_dir, "--quiet"] + flags, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.PIPE, text=True)
+                                stderr=subprocess.PIPE, text=True, env=binaries.module_env())
     kills = []
     logs = os.path.join(run_dir, "logs")
     start = time.time()
@@ -343,21 +318,21 @@ def drill(args, base):
         if pid is None:
             sys.exit(f"imca bench: no {victim} to kill (the run ended?)")
         # What the victim had said just before (its status is at most 1 s old).
-        before = launch.read_json(os.path.join(logs, f"{victim}.status.json")) or {}
-        learner = launch.read_json(os.path.join(logs, "learner.status.json")) or {}
+        before = runs.read_json(os.path.join(logs, f"{victim}.status.json")) or {}
+        learner = runs.read_json(os.path.join(logs, "learner.status.json")) or {}
         os.kill(pid, signal.SIGKILL)
         kills.append((victim, time.time() - start, before, learner))
         print(f"killed {victim} at {time.time() - start:.0f} s ({learner.get('env_steps', 0):,} env steps)", flush=True)
     _, err = launcher.communicate()
     if launcher.returncode != 0:
         sys.exit(f"imca bench: the killed run failed: {err.strip()}")
-    summary = launch.read_json(os.path.join(run_dir, "summary.json"))
-    reward = launch.read_json(os.path.join(run_dir, "logs", "reward_server.status.json"))
-    learner = launch.read_json(os.path.join(run_dir, "logs", "learner.status.json"))
-    answered = sum((launch.read_json(os.path.join(run_dir, "logs", f"actor-{i}.status.json")) or {})
+    summary = runs.read_json(os.path.join(run_dir, "summary.json"))
+    reward = runs.read_json(os.path.join(run_dir, "logs", "reward_server.status.json"))
+    learner = runs.read_json(os.path.join(run_dir, "logs", "learner.status.json"))
+    answered = sum((runs.read_json(os.path.join(run_dir, "logs", f"actor-{i}.status.json")) or {})
                    .get("transitions_scored", 0) for i in range(2))
     unbroken = [r[1]["final_success_rate"] for r in results]
-    print(f"\n| run | final success | env steps | wall s | restarts |")
+    print("\n| run | final success | env steps | wall s | restarts |")
     print("|---|---|---|---|---|")
     for k, (_, s_, _) in enumerate(results):
         print(f"| unbroken {k + 1} | {s_['final_success_rate']:.1%} | {s_['env_steps']:,} | {s_['wall_seconds']:.0f} | 0 |")
@@ -380,12 +355,12 @@ def drill(args, base):
             print(f"reward server killed at {at:.0f} s: it had counted {before.get('transitions_scored', 0):,} "
                   f"transitions (status, <= 1 s old); restarted with {restored:,} restored")
         elif victim == "actor-1":
-            trained = [r for r in launch.read_metrics(os.path.join(logs, "trained_unrolls.csv"))
+            trained = [r for r in runs.read_metrics(os.path.join(logs, "trained_unrolls.csv"))
                        if r["actor_id"] == "actor-1" and r["incarnation"] == before.get("incarnation")]
             print(f"actor-1 killed at {at:.0f} s: its incarnation {before.get('incarnation')} had "
                   f"{before.get('unrolls_pushed', 0)} unrolls acked (status, <= 1 s old), {len(trained)} trained "
                   f"and kept; resent across all kills: "
-                  f"{sum((launch.read_json(os.path.join(logs, f'actor-{i}.status.json')) or {}).get('unrolls_resent', 0) for i in range(2))}"
+                  f"{sum((runs.read_json(os.path.join(logs, f'actor-{i}.status.json')) or {}).get('unrolls_resent', 0) for i in range(2))}"
                   " (surviving incarnations)")
         else:
             text = log_text("learner.1.log")
@@ -425,7 +400,10 @@ def start_reward_server(base, scenario):
 
 
 def python_bench(args, base):
-    sys.path.insert(0, os.path.join(ROOT, "python"))
+    # The package comes from PYTHONPATH (./imca bench puts python/ there).
+    if importlib.util.find_spec("imca") is None:
+        sys.exit("imca bench python: the Python package (python/imca) is not importable; "
+                 "run it as ./imca bench python (which sets PYTHONPATH)")
     parts = args.parts.split(",")
     unknown = set(parts) - {"env", "score", "train"}
     if unknown:
@@ -538,17 +516,18 @@ def python_train_bench(args, base):
     print("| trainer | env steps to 90%: median (per seed) | reached | wall-clock to 90%: median (per seed) "
           "| env steps/s: median |")
     print("|---|---|---|---|---|")
-    for name, runs in results.items():
-        wall = median_reached([w for _, w, _ in runs])
-        print(f"| {name} | {fmt(median_reached([s for s, _, _ in runs]))} ({' / '.join(fmt(s) for s, _, _ in runs)}) "
-              f"| {sum(s is not None for s, _, _ in runs)}/{len(runs)} "
+    for name, trials in results.items():
+        wall = median_reached([w for _, w, _ in trials])
+        print(f"| {name} | {fmt(median_reached([s for s, _, _ in trials]))} ({' / '.join(fmt(s) for s, _, _ in trials)}) "
+              f"| {sum(s is not None for s, _, _ in trials)}/{len(trials)} "
               f"| {'-' if wall is None else f'{wall:.1f} s'} "
-              f"({' / '.join('-' if w is None else f'{w:.0f} s' for _, w, _ in runs)}) "
-              f"| {statistics.median(r for _, _, r in runs):,.0f} |")
+              f"({' / '.join('-' if w is None else f'{w:.0f} s' for _, w, _ in trials)}) "
+              f"| {statistics.median(r for _, _, r in trials):,.0f} |")
     print(f"run folders and logs: {base}")
 
 
-def main(argv):
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
     p = argparse.ArgumentParser(prog="imca bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="what", required=True)
@@ -589,7 +568,7 @@ def main(argv):
     py.add_argument("--envs", default="64,256,1024", help="env counts of the env comparison")
     py.add_argument("--seeds", default="1,2,3")
     py.add_argument("--steps", type=int, default=2_000_000, help="training budget in env steps")
-    args = p.parse_args(argv)
+    args = p.parse_args(options.dashed(argv))
     if args.what not in ("learn", "soak", "drill"):
         args.extra = []
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -602,4 +581,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    main()

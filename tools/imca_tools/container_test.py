@@ -1,4 +1,3 @@
-#!/usr/bin/python3
 """./imca deploy-test: the image, deploy/docker-compose.yml and the reward
 server's Kubernetes Deployment run for real, under podman.
 
@@ -12,7 +11,7 @@ debian:12 base with debootstrap if there is none (no registry answers here;
 the tarball is cached in ~/.cache/imca), builds the imca and Prometheus
 images, makes certificates (tools/make_certs.sh runs/compose/tls), and runs
 the compose file through docker-compose against `podman system service`
-with its 2 actors and a budget of --steps (2M). It checks and prints: env steps to 90%
+with its 2 actors and a budget of --steps (the learner's default). It checks and prints: env steps to 90%
 evaluation success (<= 1M), every Prometheus target up and the scraped
 env-step rate against metrics.csv's, kill -9 of the learner and then of the
 reward server (each restarted by compose and resumed, the reward server
@@ -39,10 +38,8 @@ import urllib.request
 
 import yaml
 
-ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import launch  # noqa: E402  (metrics.csv, steps to a success rate)
+from . import binaries, options, plan, runs
+from .binaries import BIN, ROOT
 
 DEPLOY = os.path.join(ROOT, "deploy")
 COMPOSE = os.path.join(DEPLOY, "docker-compose.yml")
@@ -166,7 +163,7 @@ def build_image(from_source):
         shutil.copy2(os.path.join(DEPLOY, "packages.txt"), os.path.join(ctx, "deploy"))
         shutil.copytree(os.path.join(ROOT, "maps"), os.path.join(ctx, "maps"))
         with open(os.path.join(ctx, "Dockerfile"), "w") as f:
-            f.write("# tools/container_test.py --prebuilt: the host's build/bin as stage build.\n"
+            f.write("# ./imca deploy-test --prebuilt: the host's build/bin as stage build.\n"
                     "FROM scratch AS build\nCOPY bin/ /src/build/bin/\n\n" + runtime_stage(
                         os.path.join(DEPLOY, "Dockerfile")))
         run(["podman", "build", "-t", IMAGE, ctx])
@@ -182,7 +179,7 @@ def build_prometheus():
 def make_certs():
     """Fresh certificates where compose reads them (and the probe's, for kube)."""
     shutil.rmtree(TLS, ignore_errors=True)
-    run([os.path.join(ROOT, "tools", "make_certs.sh"), TLS, "actor", "probe"])
+    run([binaries.MAKE_CERTS, TLS, "actor", "probe"])
 
 
 @contextlib.contextmanager
@@ -222,9 +219,7 @@ def compose_actors():
 
 def learner_default_steps():
     """The learner binary's default budget (what the compose file trains)."""
-    out = subprocess.run([os.path.join(launch.BIN, "learner"), "--print_config"], capture_output=True, text=True,
-                         check=True)
-    return json.loads(out.stdout)["steps"]
+    return binaries.print_config("learner", [])["steps"]
 
 
 class Compose:
@@ -300,7 +295,7 @@ def scraped_counter(ip, family):
 
 
 def metrics_rows():
-    return launch.read_metrics(os.path.join(RUNS, "metrics.csv"))
+    return runs.read_metrics(os.path.join(RUNS, "metrics.csv"))
 
 
 def wait_for(what, done, timeout, poll=1.0):
@@ -455,18 +450,18 @@ def same_configuration(figures):
     with open(COMPOSE) as f:
         services = yaml.safe_load(f)["services"]
     argv, flags = [], {}
-    for program in launch.PROGRAMS:
-        options = {programs[program]: flag for flag, programs, _ in launch.OPTIONS if program in programs}
+    for program in binaries.PROGRAMS:
+        train_flag = {programs[program]: flag for flag, programs, _ in options.OPTIONS if program in programs}
         command = services[program]["command"]
         # The training flags only: wiring (addresses, files, secrets) is the deployment's.
-        flags[program] = [a for a in command[1:] if a[2:].partition("=")[0] in options]
+        flags[program] = [a for a in command[1:] if a[2:].partition("=")[0] in train_flag]
         for a in flags[program]:
             name, _, value = a[2:].partition("=")
-            if options[name] not in argv:
-                argv += [options[name], value]
-    _, config = launch.plan(launch.parse_args(argv))
+            if train_flag[name] not in argv:
+                argv += [train_flag[name], value]
+    _, config = plan.plan(plan.parse_args(argv))
     differ = []
-    for program in launch.PROGRAMS:
+    for program in binaries.PROGRAMS:
         out = podman("run", "--rm", IMAGE, program, *flags[program], "--print_config")
         if json.loads(out.stdout) != config["resolved"][program]:
             differ.append(program)
@@ -568,7 +563,7 @@ def compose_test(figures, docker_host, steps, actors):
         figures.add("run reaches its budget", f"{final:,} env steps, learner exit {learner_state[1]}, "
                     f"{elapsed:.0f} s wall", f">= {steps:,}, exit 0",
                     final >= steps and learner_state[1] == "0")
-        reached = launch.first_reaching(rows, 0.9)
+        reached = runs.first_reaching(rows, 0.9)
         figures.add("coop_nav env steps to 90% evaluation success",
                     f"{int(reached['env_steps']):,} (success {float(reached['success_rate']):.1%})" if reached else
                     f"not reached (best {max(float(r['success_rate']) for r in rows):.1%})", "<= 1,000,000",
@@ -770,7 +765,7 @@ def interrupted(signum, frame):
     raise KeyboardInterrupt(f"signal {signum}")
 
 
-def main(argv):
+def main(argv=None):
     p = argparse.ArgumentParser(prog="./imca deploy-test", description=__doc__.split("\n\n")[0])
     p.add_argument("part", nargs="?", default="all", choices=("all", "image", "compose", "kube"))
     mode = p.add_mutually_exclusive_group()
@@ -779,11 +774,11 @@ def main(argv):
     mode.add_argument("--from-source", dest="from_source", action="store_true",
                       help="the image from deploy/Dockerfile as it is (compiles everything)")
     p.set_defaults(from_source=False)
-    p.add_argument("--steps", type=int, default=2_000_000,
-                   help="the compose learner's budget (default: the learner's, 2M; another comes in an "
-                        "override file)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="the compose learner's budget (default: the learner's, as the compose file trains; "
+                        "another comes in an override file)")
     p.add_argument("--reuse-image", action="store_true", help="use an existing imca image as it is")
-    args = p.parse_args(argv)
+    args = p.parse_args(options.dashed(sys.argv[1:] if argv is None else argv))
     # SIGTERM tears down as Ctrl-C does (the finally blocks).
     signal.signal(signal.SIGTERM, interrupted)
     figures = Figures()
@@ -807,7 +802,8 @@ def main(argv):
             with podman_service() as docker_host:
                 t = time.time()
                 try:
-                    compose_test(figures, docker_host, args.steps, compose_actors())
+                    steps = learner_default_steps() if args.steps is None else args.steps
+                    compose_test(figures, docker_host, steps, compose_actors())
                 finally:
                     timings["compose run"] = f"{time.time() - t:.0f} s"
         if args.part in ("all", "kube"):
@@ -823,4 +819,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main())

@@ -1,4 +1,3 @@
-#!/usr/bin/python3
 """./imca experiment: a grid of training runs, resumable, with tables and plots.
 
   ./imca experiment --preset paper|edti|quick [--out DIR] [--jobs N]
@@ -12,6 +11,10 @@ command again after Ctrl-C or a crash resumes; an unfinished cell starts over
 (each cell is one uninterrupted run). Results: DIR/table.md, DIR/table.csv,
 DIR/runs.csv, DIR/curves-<scenario>-<reward>.png, DIR/shares-<scenario>-<reward>.png,
 DIR/gifs/<scenario>-<reward>-<method>.gif. See docs/experiments.md.
+
+Each cell runs `python3 -m imca_tools.train` (./imca train) in a child
+process; its flags are checked beforehand as ./imca train checks them
+(imca_tools.plan), without starting anything.
 """
 import argparse
 import contextlib
@@ -27,9 +30,8 @@ import subprocess
 import sys
 import time
 
-ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.join(ROOT, "tools"))
-import launch  # noqa: E402  (flag vocabulary and validation of ./imca train)
+from . import binaries, options, plan, runs
+from .binaries import ROOT
 
 # Keys of a grid entry that may hold a list (expanded as a product) and the
 # ./imca train flag each becomes. Anything else under "flags" is passed as is.
@@ -42,7 +44,7 @@ RESERVED_FLAGS = set(AXES) | {"out", "resume", "quiet", "reward-port", "learner-
 
 def baselines():
     """The paper's baseline credit modes: every mode but imca."""
-    return [c for c in launch.facts()["credits"] if c != "imca"]
+    return [c for c in binaries.facts()["credits"] if c != "imca"]
 
 
 def pairing(scenario, reward, steps, seeds, maddpg=False):
@@ -53,7 +55,7 @@ def pairing(scenario, reward, steps, seeds, maddpg=False):
     entries = [{"scenario": scenario, "reward": reward, "credit": baselines(), "permutation": "off",
                 "seed": seeds, "steps": steps},
                {"scenario": scenario, "reward": reward, "credit": "imca",
-                "permutation": "off" if reward == "sf" else launch.facts()["permutations"], "seed": seeds, "steps": steps}]
+                "permutation": "off" if reward == "sf" else binaries.facts()["permutations"], "seed": seeds, "steps": steps}]
     if maddpg:
         entries.append(maddpg_rows(scenario, reward, steps, seeds))
     return entries
@@ -107,6 +109,10 @@ class ExperimentError(Exception):
     """A one-line, user-facing error."""
 
 
+# An axis a grid entry leaves out (permutation, seed, steps): ./imca train's default.
+BINARY_DEFAULT = object()
+
+
 def as_list(value):
     return value if isinstance(value, list) else [value]
 
@@ -134,25 +140,38 @@ def expand(entries, where):
                                       + (f" (use the entry's '{key}')" if key in AXES else ""))
         if len(flags) != len(entry.get("flags", {})):
             raise ExperimentError(f"{name}: 'flags' names a flag twice (dashes and underscores are the same)")
-        values = {key: as_list(entry.get(key, default)) for key, default in
-                  (("scenario", None), ("reward", None), ("credit", None), ("permutation", "off"),
-                   ("seed", 1), ("steps", 2_000_000))}
-        known = launch.facts()
+        # An axis the entry leaves out takes ./imca train's default (the binaries').
+        values = {key: as_list(entry[key]) if key in entry else [BINARY_DEFAULT] for key in AXES}
+        known = binaries.facts()
         for key, allowed in (("scenario", known["scenarios"]), ("reward", list(known["rewards"])),
                              ("credit", known["credits"]), ("permutation", known["permutations"])):
             for v in values[key]:
-                if v not in allowed:
+                if v is not BINARY_DEFAULT and v not in allowed:
                     raise ExperimentError(f"{name}: {key} '{v}' is not one of {', '.join(allowed)}")
         for key in ("seed", "steps"):
             for v in values[key]:
-                if not isinstance(v, int) or isinstance(v, bool) or v < (0 if key == "seed" else 1):
+                if v is not BINARY_DEFAULT and (not isinstance(v, int) or isinstance(v, bool) or v < (0 if key == "seed" else 1)):
                     raise ExperimentError(f"{name}: {key} must be {'an integer >= 0' if key == 'seed' else 'a positive integer'}, got {v!r}")
         for combo in itertools.product(*(values[k] for k in AXES)):
-            cells.append(dict(zip(AXES, combo), flags=dict(flags)))
+            cell = dict(zip(AXES, combo), flags=dict(flags))
+            cells.append(with_defaults(cell, known))
     unique = list({cell_id(cell): cell for cell in cells}.values())  # Grid order, each cell once.
     if not unique:
         raise ExperimentError(f"{where}: the grid has no cells")
     return unique
+
+
+def with_defaults(cell, known):
+    """`cell` with each axis it leaves out (BINARY_DEFAULT) set to the
+    binaries' default for its scenario, reward kind and algorithm."""
+    algo = cell["flags"].get("algo")
+    # A wrong algo is check_flags' to name; the defaults are read for the default one meanwhile.
+    algo = algo if algo in known["algos"] else known["default_algo"]
+    args = argparse.Namespace(scenario=cell["scenario"], reward=cell["reward"], algo=algo)
+    for key, flag in AXES.items():
+        if cell[key] is BINARY_DEFAULT:
+            cell[key] = options.default_of(flag, args)
+    return cell
 
 
 def flags_text(flags):
@@ -175,7 +194,7 @@ def labeller(cells):
     def method(cell):
         # EITI and EDTI are methods of their own (their per-agent bonus is
         # the method), named by their reward kind.
-        per_agent = launch.per_agent_reward(cell["reward"]) and cell["credit"] == "independent"
+        per_agent = binaries.per_agent_reward(cell["reward"]) and cell["credit"] == "independent"
         label = cell["reward"] if per_agent else cell["credit"]
         if cell["permutation"] != "off":
             label += f"/{cell['permutation']}"
@@ -199,13 +218,18 @@ def cell_id(cell):
     return "-".join(parts)
 
 
-def train_argv(cell, out):
-    argv = [sys.executable, os.path.join(ROOT, "tools", "launch.py"), "--quiet", "--out", out]
+def train_flags(cell, out):
+    """The ./imca train flags of a cell's run in `out`."""
+    argv = ["--out", out]
     for key, flag in AXES.items():
         argv += [flag, str(cell[key])]
     for key, value in sorted(cell["flags"].items()):
         argv += [f"--{key}", str(value)]
     return argv
+
+
+def train_argv(cell, out):
+    return binaries.module_argv("train", "--quiet", *train_flags(cell, out))
 
 
 def check_flags(cells):
@@ -217,21 +241,21 @@ def check_flags(cells):
         if key in checked:
             continue
         checked.add(key)
-        argv = train_argv(cell, "unused")[3:]
+        argv = train_flags(cell, "unused")
         captured = io.StringIO()
         try:
             with contextlib.redirect_stderr(captured):
                 # The binaries check the values (--print_config), as a start would.
-                launch.plan(launch.parse_args(argv))
+                plan.plan(plan.parse_args(argv))
         except SystemExit:
             why = captured.getvalue().strip().removeprefix("imca train: ")
             raise ExperimentError(f"flags {json.dumps(cell['flags'])}: {why}")
-        except launch.LaunchError as error:
+        except binaries.LaunchError as error:
             raise ExperimentError(f"flags {json.dumps(cell['flags'])}: {error}")
 
 
 def finished(run_dir, cell):
-    return launch.finished_summary(run_dir, cell["steps"])
+    return runs.finished_summary(run_dir, cell["steps"])
 
 
 # config.json keys that name where and how a run was launched, not what it trained.
@@ -250,7 +274,7 @@ def settings_conflict(run_dir, cell):
     except (OSError, ValueError):
         return None
     with contextlib.redirect_stderr(io.StringIO()):
-        now = vars(launch.parse_args(train_argv(cell, run_dir)[3:]))
+        now = vars(plan.parse_args(train_flags(cell, run_dir)))
     for key in sorted(set(saved) & set(now) - UNCOMPARED_SETTINGS):
         if saved[key] != now[key]:
             return f"{key} {saved[key]!r} where ./imca train now uses {now[key]!r}"
@@ -295,7 +319,7 @@ def run_cells(cells, out, jobs):
                 os.makedirs(run_dir)
                 with open(os.path.join(run_dir, "train.log"), "w") as log:
                     proc = subprocess.Popen(train_argv(cell, run_dir), stdout=log, stderr=subprocess.STDOUT,
-                                            start_new_session=True)
+                                            start_new_session=True, env=binaries.module_env())
                 running.append((cell, run_dir, proc, time.time()))
             time.sleep(0.5)
             for entry in list(running):
@@ -314,14 +338,14 @@ def run_cells(cells, out, jobs):
                 left = len(todo) + len(running)
                 eta = elapsed / completed * left if completed else 0
                 print(f"[{done_before + completed}/{len(cells)}] {cell_id(cell)}: {status} "
-                      f"({time.time() - t0:.0f} s); ETA {launch.fmt_duration(eta)}", file=sys.stderr, flush=True)
+                      f"({time.time() - t0:.0f} s); ETA {runs.fmt_duration(eta)}", file=sys.stderr, flush=True)
     finally:
         for _, _, proc, _ in running:
             if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)  # launch.py stops its services in order.
+                proc.send_signal(signal.SIGTERM)  # ./imca train stops its services in order.
         for _, run_dir, proc, _ in running:
             try:
-                # launch.py stops actors, learner and reward server with
+                # ./imca train stops actors, learner and reward server with
                 # bounded waits (at most 270 s in all).
                 proc.wait(timeout=330)
             except subprocess.TimeoutExpired:
@@ -344,8 +368,9 @@ def last_line(path):
         return "no log"
 
 
-def main(argv):
-    p = launch.OneLineParser(prog="imca experiment", description=__doc__,
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    p = options.OneLineParser(prog="imca experiment", description=__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--preset", help="a built-in grid (docs/experiments.md; a wrong name lists them)")
@@ -353,16 +378,16 @@ def main(argv):
     what.add_argument("--report", metavar="DIR", help="only (re)write the tables and plots of DIR")
     p.add_argument("--out", default="",
                    help=f"results folder (default: results/<preset>-{PRESET_EDITION} or results/<grid name>)")
-    p.add_argument("--jobs", type=launch.positive_int, default=0,
+    p.add_argument("--jobs", type=options.positive_int, default=0,
                    help=f"runs at once (default: cores/2 = {default_jobs()})")
-    args = p.parse_args(argv)
+    args = p.parse_args(options.dashed(argv))
     try:
         if args.preset and args.preset not in presets():
             p.error(f"argument --preset: '{args.preset}' is not one of {', '.join(sorted(presets()))}")
-    except launch.LaunchError as error:
+    except binaries.LaunchError as error:
         p.error(str(error))
 
-    import report  # noqa: E402  (matplotlib only once the flags are valid)
+    from . import report  # matplotlib only once the flags are valid
 
     try:
         if args.report:

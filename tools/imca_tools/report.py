@@ -1,4 +1,6 @@
-"""Tables and plots of an experiment folder (used by tools/experiment.py).
+"""Tables and plots of an experiment folder (written by ./imca experiment at
+the end of a grid, and alone by `./imca experiment --report DIR`, which
+`python3 -m imca_tools.report DIR` is).
 
 Per (scenario, reward, method): mean and 95% confidence interval (Student t
 over seeds) of the final success rate, env steps to 80% and 90% success
@@ -10,8 +12,9 @@ import math
 import os
 import shutil
 import statistics
+import sys
 
-import launch  # tools/ is on sys.path (tools/experiment.py)
+from . import runs
 
 # Two-sided 95% Student t quantiles by degrees of freedom (1..30).
 T95 = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145,
@@ -29,7 +32,7 @@ def mean_ci(values):
 
 
 def read_metrics(run_dir):
-    return launch.read_metrics(os.path.join(run_dir, "metrics.csv"))
+    return runs.read_metrics(os.path.join(run_dir, "metrics.csv"))
 
 
 def groups_of(cells, summaries, method, cell_id):
@@ -197,16 +200,16 @@ def curves_figure(out, methods, cell_id, plt, title, path, key="success_rate"):
         return
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for label, members in methods:
-        runs = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
-        runs = [r for r in runs if r]
-        if not runs:
+        curves = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
+        curves = [r for r in curves if r]
+        if not curves:
             continue
         budget = members[0][0]["steps"]
         grid = [budget * i / 100 for i in range(101)]
-        ys = [curve(r, grid, key) for r in runs]
+        ys = [curve(r, grid, key) for r in curves]
         mean = [statistics.mean(col) for col in zip(*ys)]
-        line, = ax.plot(grid, mean, lw=1.6, label=f"{label} ({len(runs)})")
-        if len(runs) > 1:
+        line, = ax.plot(grid, mean, lw=1.6, label=f"{label} ({len(curves)})")
+        if len(curves) > 1:
             half = [mean_ci(list(col))[1] for col in zip(*ys)]
             low, high = (0, 1) if key == "success_rate" else (-math.inf, math.inf)
             ax.fill_between(grid, [max(low, m - h) for m, h in zip(mean, half)],
@@ -236,7 +239,7 @@ def shares_plot(out, scenario, reward, methods, cell_id, plt):
             rows = read_metrics(run_dir)
             if s is None or not rows or "share_1" not in rows[0]:
                 continue
-            trace = read_trace(run_dir)
+            trace = runs.read_trace(run_dir)
             fig, axes = plt.subplots(1, 2 if trace else 1, figsize=(12 if trace else 6.5, 4))
             axes = axes if trace else [axes]
             n = sum(1 for k in rows[0] if k.startswith("share_") and k[6:].isdigit())
@@ -257,14 +260,6 @@ def shares_plot(out, scenario, reward, methods, cell_id, plt):
             fig.savefig(os.path.join(out, f"shares-{scenario}-{reward}.png"), dpi=110)
             plt.close(fig)
             return
-
-
-def read_trace(run_dir):
-    try:
-        with open(os.path.join(run_dir, "credit_trace.csv")) as f:
-            return list(csv.DictReader(f))
-    except OSError:
-        return []
 
 
 def trace_panel(ax, trace, n):
@@ -297,3 +292,16 @@ def trace_panel(ax, trace, n):
                  f"mean p^a on those steps {mean(on_new)}, on the others {mean(on_old)}", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
+
+
+def main(argv=None):
+    """Only (re)write the tables and plots of an experiment folder DIR."""
+    from . import experiment, options
+    p = options.OneLineParser(prog="imca experiment --report", description=__doc__)
+    p.add_argument("dir", metavar="DIR", help="an experiment folder (its grid.json and cells/)")
+    args = p.parse_args(options.dashed(sys.argv[1:] if argv is None else argv))
+    return experiment.main(["--report", args.dir])
+
+
+if __name__ == "__main__":
+    sys.exit(main())
