@@ -3,10 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <random>
-#include <thread>
-
-#include <unistd.h>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -61,7 +58,17 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
       eval_envs_(scenario, std::max(config.eval_envs, 1), config.seed ^ 0xe7a1e7a1e7a1ULL),
       rng_(config.seed * 7919 + 17),
       incarnation_(config.incarnation != 0 ? config.incarnation : RandomIncarnation()),
-      sync_unrolls_(std::max(config.sync_unrolls, 0)) {
+      counters_(RegisterMetrics(&registry_)),
+      sync_unrolls_(std::max(config.sync_unrolls, 0)),
+      policies_(learner_.get(), *scenario, featurizer_.obs_dim(),
+                PolicyClientOptions{config.actor_id, config.rpc_timeout, config.tls}, &stop_,
+                [this](const v1::Policy& policy) { return Admit(policy); },
+                [this] { WriteStatus("waiting_policy", /*force=*/false); }),
+      sender_(PushUnrollsOf(learner_.get()),
+              UnrollSenderOptions{config.actor_id, config.unrolls_per_stream, config.ack_timeout,
+                                  counters_.reconnects},
+              &stop_) {
+  if (!config.trace_file.empty()) trace_.emplace(config.trace_file, config.trace_period, config.actor_id);
   const int rows = std::max(config.num_envs, config.eval_envs) * scenario->num_agents();
   const int envs = std::max(config.num_envs, config.eval_envs);
   obs_.resize(static_cast<size_t>(rows) * featurizer_.obs_dim());
@@ -72,119 +79,52 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
   reached_.resize(static_cast<size_t>(envs) * scenario->state_size());
   terminated_.reset(new bool[envs]);
   truncated_.reset(new bool[envs]);
-  RegisterMetrics();
 }
 
-void Actor::RegisterMetrics() {
+Actor::Counters Actor::RegisterMetrics(metrics::Registry* registry) {
   using metrics::Type;
-  Counters& c = counters_;
-  c.env_steps = &registry_.AddCounter({"imca_actor_env_steps_total", Type::kCounter,
+  Counters c;
+  c.env_steps = &registry->AddCounter({"imca_actor_env_steps_total", Type::kCounter,
                                        "Joint environment steps acted (training environments)."});
-  c.episodes = &registry_.AddCounter({"imca_actor_episodes_total", Type::kCounter,
+  c.episodes = &registry->AddCounter({"imca_actor_episodes_total", Type::kCounter,
                                       "Training episodes finished."});
-  c.transitions_scored = &registry_.AddCounter({"imca_actor_transitions_scored_total", Type::kCounter,
+  c.transitions_scored = &registry->AddCounter({"imca_actor_transitions_scored_total", Type::kCounter,
                                                 "Transitions whose Score the reward server answered."});
-  c.unrolls_pushed = &registry_.AddCounter({"imca_actor_unrolls_pushed_total", Type::kCounter,
+  c.unrolls_pushed = &registry->AddCounter({"imca_actor_unrolls_pushed_total", Type::kCounter,
                                             "Unrolls the learner acknowledged (taken or dropped for good)."});
-  c.unrolls_resent = &registry_.AddCounter({"imca_actor_unrolls_resent_total", Type::kCounter,
+  c.unrolls_resent = &registry->AddCounter({"imca_actor_unrolls_resent_total", Type::kCounter,
                                             "Unrolls sent again after a lost stream."});
-  c.reconnects = &registry_.AddCounter({"imca_actor_reconnects_total", Type::kCounter,
+  c.reconnects = &registry->AddCounter({"imca_actor_reconnects_total", Type::kCounter,
                                         "Unroll streams opened again after one that had been acknowledged broke."});
-  c.retries = &registry_.AddCounter({"imca_actor_retries_total", Type::kCounter,
+  c.retries = &registry->AddCounter({"imca_actor_retries_total", Type::kCounter,
                                      "Failed Score or push attempts retried with backoff."});
-  c.policy_updates = &registry_.AddCounter({"imca_actor_policy_updates_total", Type::kCounter,
+  c.policy_updates = &registry->AddCounter({"imca_actor_policy_updates_total", Type::kCounter,
                                             "Policies fetched and adopted."});
-  c.policy_version = &registry_.AddGauge({"imca_actor_policy_version", Type::kGauge,
+  c.policy_version = &registry->AddGauge({"imca_actor_policy_version", Type::kGauge,
                                           "Version of the policy the actor acts with (-1: none yet)."});
   c.policy_version->Set(-1);
-  c.refused = AddRejectionCounters(&registry_, {"imca_actor_unrolls_refused_total", Type::kCounter,
-                                                "Unrolls the learner refused or dropped, by reason."});
+  c.refused = AddRejectionCounters(registry, {"imca_actor_unrolls_refused_total", Type::kCounter,
+                                              "Unrolls the learner refused or dropped, by reason."});
+  return c;
 }
 
-bool Actor::RefreshPolicy(bool wait) {
-  return FetchPolicy(policy_.has_value() ? policy_->version() + 1 : 0, /*retry=*/wait, /*until_newer=*/false);
-}
-
-bool Actor::AwaitPolicy(int64_t min_version) {
-  return FetchPolicy(min_version, /*retry=*/true, /*until_newer=*/true);
-}
-
-bool Actor::FetchPolicy(int64_t min_version, bool retry, bool until_newer) {
-  // A long poll waits on the learner for at most half the deadline.
-  const int wait_ms =
-      until_newer ? static_cast<int>(std::clamp<int64_t>(config_.rpc_timeout.count() / 2, 1, 5000)) : 0;
-  Backoff backoff;
-  while (!ShutdownRequested()) {
-    WriteStatus("waiting_policy", /*force=*/false);
-    grpc::ClientContext context;
-    context.set_deadline(DeadlineIn(config_.rpc_timeout));
-    v1::GetPolicyRequest request;
-    request.set_min_version(min_version);
-    request.set_wait_ms(wait_ms);
-    v1::Policy policy;
-    const grpc::Status status = learner_->GetPolicy(&context, request, &policy);
-    if (!status.ok()) {
-      const absl::Status failed = FromGrpcStatus(status);
-      if (IsRefusal(failed)) {
-        policy_error_ = absl::Status(failed.code(), DescribeRpcFailure("learner", failed, config_.tls));
-        return false;
-      }
-      // Said once, then every 10 s: a wrong certificate must not look like
-      // a learner that is still starting.
-      if (const auto now = std::chrono::steady_clock::now(); now - policy_failure_logged_ > std::chrono::seconds(10)) {
-        policy_failure_logged_ = now;
-        std::fprintf(stderr, "%s: GetPolicy: %s; retrying\n", config_.actor_id.c_str(),
-                     DescribeRpcFailure("learner", failed, config_.tls).c_str());
-      }
-      if (!retry || (until_newer && LearnerDone())) return false;
-      backoff.Wait();
-      continue;
-    }
-    backoff.Reset();
-    if (policy.tensors_size() > 0) return Adopt(policy);
-    if (policy_.has_value() &&
-        (policy.version() < policy_->version() || policy.learner_incarnation() != learner_incarnation_)) {
-      // Not modified, but the learner restarted from a checkpoint: older
-      // than ours, or ours, without the unrolls of it the old one took.
-      // Take whatever it has, and deliver that version's share anew.
-      policy_.reset();
-      min_version = 0;
-      continue;
-    }
-    if (!until_newer) return true;  // Nothing newer: keep acting with ours.
-    if (LearnerDone()) return false;
-  }
-  return false;
-}
-
-bool Actor::Adopt(const v1::Policy& policy) {
-  absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
-  absl::Status fits = mlp.ok() ? mlp->Fits(featurizer_.obs_dim(), scenario_->num_actions(), scenario_->num_agents())
-                               : mlp.status();
-  if (!fits.ok()) {
-    policy_error_ = absl::InternalError(
-        absl::StrCat("learner's policy does not fit ", scenario_->name(), ": ", fits.message()));
-    return false;
-  }
+absl::Status Actor::Admit(const v1::Policy& policy) {
   if (config_.sync_unrolls < 0) {
     // As the learner asks: its share of env steps in whole unrolls.
     const int64_t share = policy.sync_steps_per_actor();
     const int64_t unroll_steps = int64_t{config_.num_envs} * config_.unroll_length;
     if (share % unroll_steps != 0) {
-      policy_error_ = absl::FailedPreconditionError(absl::StrCat(
+      return absl::FailedPreconditionError(absl::StrCat(
           "the synchronous learner asks each actor for ", share, " env steps per policy version (its batch_steps / ",
           "actors), not a whole number of this actor's unrolls of --envs x --unroll_length = ", unroll_steps,
           " steps; change --envs or --unroll_length, or the learner's --batch_steps or --actors"));
-      return false;
     }
     sync_unrolls_ = static_cast<int>(share / unroll_steps);
   }
-  policy_ = *std::move(mlp);
-  learner_incarnation_ = policy.learner_incarnation();
   version_unrolls_ = 0;  // A share starts with each policy taken.
   counters_.policy_updates->Increment();
   counters_.policy_version->Set(static_cast<double>(policy.version()));
-  return true;
+  return absl::OkStatus();
 }
 
 void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
@@ -196,7 +136,7 @@ void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions,
       featurizer_.Observe(states + e * k, a, &obs_[static_cast<size_t>(e * n + a) * obs_dim]);
     }
   }
-  policy_->Probabilities(obs_.data(), num_envs * n, probs);
+  policies_.policy()->Probabilities(obs_.data(), num_envs * n, probs);
   for (int row = 0; row < num_envs * n; ++row) {
     const float* p = probs + row * a_count;
     const int u = SampleCategorical(p, a_count, rng_.UniformDouble());
@@ -210,7 +150,7 @@ void Actor::Rollout(v1::Unroll* u) {
   const int n = scenario_->num_agents(), k = scenario_->state_size(), a_count = scenario_->num_actions();
   u->set_scenario(std::string(scenario_->name()));
   u->set_actor_id(config_.actor_id);
-  u->set_policy_version(policy_->version());
+  u->set_policy_version(policies_.version());
   u->set_length(T);
   u->set_num_envs(E);
   u->set_num_agents(n);
@@ -268,7 +208,11 @@ absl::Status Actor::Score(v1::Unroll* unroll) {
   grpc::ClientContext context;
   context.set_deadline(DeadlineIn(config_.rpc_timeout));
   v1::ScoreResponse response;
-  const grpc::Status status = reward_->Score(&context, request, &response);
+  grpc::Status status;
+  {
+    const StopSignal::Call call(&stop_, &context);
+    status = reward_->Score(&context, request, &response);
+  }
   unroll->Swap(request.mutable_unroll());
   if (!status.ok()) return FromGrpcStatus(status);
   *unroll->mutable_intrinsic_rewards() = std::move(*response.mutable_agent_rewards());
@@ -276,61 +220,20 @@ absl::Status Actor::Score(v1::Unroll* unroll) {
   *unroll->mutable_global_rewards() = std::move(*response.mutable_global_rewards());
   *unroll->mutable_contributions() = std::move(*response.mutable_contributions());
   *unroll->mutable_influences() = std::move(*response.mutable_influences());
+  const int64_t transitions = int64_t{unroll->length()} * unroll->num_envs();
+  transitions_scored_ += transitions;
+  counters_.transitions_scored->Increment(static_cast<double>(transitions));
+  if (trace_.has_value()) trace_->Add(*unroll);
   return absl::OkStatus();
 }
 
-void Actor::CloseStream() {
-  if (stream_ != nullptr) {
-    stream_->WritesDone();
-    stream_->Finish().ok();
-  }
-  stream_.reset();
-  stream_context_.reset();
-  stream_unrolls_ = 0;
-}
-
 absl::Status Actor::Push(v1::Unroll* unroll) {
-  if (stream_ != nullptr && stream_unrolls_ >= config_.unrolls_per_stream) CloseStream();
-  if (stream_ == nullptr) {
-    stream_context_ = std::make_unique<grpc::ClientContext>();
-    // A stream lives for at most unrolls_per_stream unrolls; this deadline
-    // bounds how long a hung learner can hold this actor.
-    stream_context_->set_deadline(DeadlineIn(std::chrono::minutes(10)));
-    stream_ = learner_->PushUnrolls(stream_context_.get());
-    stream_unrolls_ = 0;
-    if (stream_broken_) counters_.reconnects->Increment();
-    stream_broken_ = false;
+  absl::StatusOr<v1::PushUnrollsResponse> ack = sender_.Send(unroll);
+  if (!ack.ok()) return ack.status();
+  if (ack->rejection() != v1::REJECTION_NONE && v1::Rejection_IsValid(ack->rejection())) {
+    counters_.refused[ack->rejection()]->Increment();
   }
-  v1::PushUnrollsRequest request;
-  request.mutable_unroll()->Swap(unroll);
-  v1::PushUnrollsResponse ack;
-  {
-    absl::MutexLock lock(&watch_mu_);
-    ack_wait_since_ = std::chrono::steady_clock::now();
-    waiting_context_ = stream_context_.get();
-  }
-  const bool sent = stream_->Write(request);
-  unroll->Swap(request.mutable_unroll());
-  const bool acked = sent && stream_->Read(&ack);
-  {
-    absl::MutexLock lock(&watch_mu_);
-    ack_wait_since_.reset();
-    waiting_context_ = nullptr;
-  }
-  if (!acked) {
-    // A reconnect is a new stream after one that was up (had an ack), not
-    // each retry while the learner is not there yet.
-    stream_broken_ = stream_unrolls_ > 0;
-    const grpc::Status status = stream_->Finish();
-    stream_.reset();
-    stream_context_.reset();
-    return status.ok() ? absl::UnavailableError("learner closed the stream") : FromGrpcStatus(status);
-  }
-  ++stream_unrolls_;
-  if (ack.rejection() != v1::REJECTION_NONE && v1::Rejection_IsValid(ack.rejection())) {
-    counters_.refused[ack.rejection()]->Increment();
-  }
-  switch (ack.rejection()) {
+  switch (ack->rejection()) {
     case v1::REJECTION_NONE:
     case v1::REJECTION_STALE:      // Dropped and counted by the learner.
     case v1::REJECTION_DUPLICATE:  // It had it already: the first ack was lost.
@@ -338,144 +241,109 @@ absl::Status Actor::Push(v1::Unroll* unroll) {
     case v1::REJECTION_AHEAD:
       // The learner restarted from an older checkpoint: this unroll's policy
       // is gone; act on with the learner's.
-      policy_.reset();
-      RefreshPolicy(/*wait=*/true);
+      policies_.Restart();
       return absl::OkStatus();
     default:  // REJECTION_INVALID, REJECTION_OVER_CAP, or one this actor does not know.
-      return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack.error()));
+      return absl::InvalidArgumentError(absl::StrCat("learner rejected unroll: ", ack->error()));
   }
 }
 
-bool Actor::LearnerDone() {
-  grpc::ClientContext context;
-  context.set_deadline(DeadlineIn(std::chrono::seconds(2)));
-  v1::LearnerStatus status;
-  return learner_->GetStatus(&context, v1::GetStatusRequest(), &status).ok() && status.done();
+Actor::Phase Actor::AfterFailure(const absl::Status& status, Phase retry, const char* peer, Backoff* backoff) {
+  if (absl::IsInvalidArgument(status)) {
+    error_ = status;  // A bug, not a transient fault: say so loudly and stop.
+    return Phase::kDone;
+  }
+  if (absl::IsOutOfRange(status) || stop_.stopped()) return Phase::kDone;  // Budget done, or asked to stop.
+  if (IsRefusal(status)) {
+    // Retrying with the same credentials cannot help: one line, and stop.
+    error_ = absl::Status(status.code(), DescribeRpcFailure(peer, status, config_.tls));
+    return Phase::kDone;
+  }
+  // Keep the unroll: score it again if it has no answer yet, resend it if it
+  // has no ack.
+  std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
+               DescribeRpcFailure(peer, status, config_.tls).c_str());
+  WriteStatus("retrying", /*force=*/false);
+  counters_.retries->Increment();
+  if (policies_.LearnerDone()) return Phase::kDone;
+  backoff->Wait([this] { return stop_.stopped(); });
+  return retry;
 }
 
-void Actor::WatchAcks() {
-  absl::MutexLock lock(&watch_mu_);
-  while (watching_) {
-    watch_mu_.AwaitWithTimeout(absl::Condition(+[](bool* watching) { return !*watching; }, &watching_),
-                               absl::Milliseconds(200));
-    if (ack_wait_since_.has_value() && waiting_context_ != nullptr &&
-        std::chrono::steady_clock::now() - *ack_wait_since_ > config_.ack_timeout) {
-      std::fprintf(stderr, "%s: no ack from the learner for %lld ms; reconnecting\n", config_.actor_id.c_str(),
-                   static_cast<long long>(config_.ack_timeout.count()));
-      waiting_context_->TryCancel();
-      waiting_context_ = nullptr;  // Once per wait.
-    }
+Actor::Phase Actor::AfterDelivery(int64_t version_acted) {
+  if (sync_unrolls_ > 0 && version_unrolls_ >= sync_unrolls_) {
+    // Synchronous: this version's share is delivered; act next with the
+    // policy the learner trains on it.
+    WriteStatus("waiting_policy", /*force=*/false);
+    if (!policies_.Await(version_acted + 1)) return Phase::kDone;
+  } else {
+    policies_.Refresh(/*wait=*/false);
   }
+  if (!policies_.error().ok()) return Phase::kDone;
+  if (policies_.version() != version_acted) version_unrolls_ = 0;
+  return Phase::kActing;
 }
 
 absl::Status Actor::Run() {
-  {
-    absl::MutexLock lock(&watch_mu_);
-    watching_ = true;
-  }
-  std::thread watchdog([this] { WatchAcks(); });
-  struct StopWatchdog {
-    Actor* self;
-    std::thread* thread;
-    ~StopWatchdog() {
-      {
-        absl::MutexLock lock(&self->watch_mu_);
-        self->watching_ = false;
-      }
-      thread->join();
-    }
-  } stop_watchdog{this, &watchdog};
   std::fprintf(stderr, "%s: incarnation %016llx\n", config_.actor_id.c_str(),
                static_cast<unsigned long long>(incarnation_));
   WriteStatus("waiting_policy", /*force=*/true);
-  if (!RefreshPolicy(/*wait=*/true)) {
-    WriteStatus("done", /*force=*/true);
-    return policy_error_;
-  }
   Backoff backoff;
-  v1::Unroll unroll;  // Reused: Clear() keeps the packed fields' capacity.
-  // The unroll in hand: acted, and scored (or not yet), not yet delivered.
-  bool in_hand = false, scored = false, sent_once = false;
-  while (!ShutdownRequested()) {
-    if (!in_hand) {
-      if (!policy_.has_value() && !RefreshPolicy(/*wait=*/true)) break;  // policy_error_ says why, if not done.
-      unroll.Clear();
-      Rollout(&unroll);
-      in_hand = true;
-      scored = false;
-      sent_once = false;
-    }
-    absl::Status status;
-    if (!scored) {
-      status = Score(&unroll);
-      scored = status.ok();
-      if (scored) {
-        transitions_scored_ += int64_t{unroll.length()} * unroll.num_envs();
-        counters_.transitions_scored->Increment(static_cast<double>(unroll.length()) * unroll.num_envs());
-        if (!config_.trace_file.empty()) Trace(unroll);
+  v1::Unroll unroll;  // The unroll in hand; reused: Clear() keeps the packed fields' capacity.
+  int pushes = 0;     // Of the unroll in hand: more than one are resends.
+  Phase phase = Phase::kActing;
+  while (phase != Phase::kDone) {
+    if (stop_.stopped()) break;
+    switch (phase) {
+      case Phase::kActing:
+        // No policy: the first, or the learner went back and had none to give.
+        if (policies_.policy() == nullptr && !policies_.Refresh(/*wait=*/true)) {
+          phase = Phase::kDone;  // The policy client's error() says why, if not stopped.
+          break;
+        }
+        unroll.Clear();
+        Rollout(&unroll);
+        pushes = 0;
+        phase = Phase::kScoring;
+        break;
+      case Phase::kScoring: {
+        const absl::Status scored = Score(&unroll);
+        phase = scored.ok() ? Phase::kPushing : AfterFailure(scored, Phase::kScoring, "reward server", &backoff);
+        break;
       }
-    }
-    if (scored) {
-      if (sent_once) {
-        ++unrolls_resent_;
-        counters_.unrolls_resent->Increment();
+      case Phase::kPushing: {
+        if (pushes++ > 0) {
+          ++unrolls_resent_;
+          counters_.unrolls_resent->Increment();
+        }
+        const absl::Status pushed = Push(&unroll);
+        if (!pushed.ok()) {
+          phase = AfterFailure(pushed, Phase::kPushing, "learner", &backoff);
+          break;
+        }
+        ++unrolls_pushed_;
+        counters_.unrolls_pushed->Increment();
+        // It counts towards this version's share only if it was acted with
+        // the version now in use: after REJECTION_AHEAD the actor went back
+        // to the learner's older policy, whose share it has not started.
+        version_unrolls_ = unroll.policy_version() == policies_.version() ? version_unrolls_ + 1 : 0;
+        backoff.Reset();
+        WriteStatus("acting", /*force=*/false);
+        phase = Phase::kChoosingPolicy;
+        break;
       }
-      sent_once = true;
-      status = Push(&unroll);
+      case Phase::kChoosingPolicy:
+        phase = AfterDelivery(policies_.version());
+        break;
+      case Phase::kDone:
+        break;
     }
-    if (status.ok()) {
-      in_hand = false;
-      ++unrolls_pushed_;
-      counters_.unrolls_pushed->Increment();
-      // It counts towards this version's share only if it was acted with the
-      // version now in use: after REJECTION_AHEAD the actor went back to the
-      // learner's older policy, whose share it has not started.
-      if (policy_.has_value() && unroll.policy_version() == policy_->version()) {
-        ++version_unrolls_;
-      } else {
-        version_unrolls_ = 0;
-      }
-      backoff.Reset();
-      WriteStatus("acting", /*force=*/false);
-    } else if (absl::IsInvalidArgument(status)) {
-      // A bug, not a transient fault: say so loudly and stop.
-      WriteStatus("done", /*force=*/true);
-      return status;
-    } else if (absl::IsOutOfRange(status)) {
-      break;  // The learner's budget is done.
-    } else if (IsRefusal(status)) {
-      // Retrying with the same credentials cannot help: one line, and stop
-      // (closing the stream and writing the trace on the way out).
-      policy_error_ =
-          absl::Status(status.code(), DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls));
-      break;
-    } else {
-      // Keep the unroll: score it again if it has no answer yet, resend it
-      // if it has no ack.
-      std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
-                   DescribeRpcFailure(scored ? "learner" : "reward server", status, config_.tls).c_str());
-      WriteStatus("retrying", /*force=*/false);
-      counters_.retries->Increment();
-      if (LearnerDone()) break;
-      backoff.Wait();
-      continue;
-    }
-    const int64_t acted = policy_.has_value() ? policy_->version() : -1;
-    if (sync_unrolls_ > 0 && version_unrolls_ >= sync_unrolls_) {
-      // Synchronous: this version's share is delivered; act next with the
-      // policy the learner trains on it.
-      WriteStatus("waiting_policy", /*force=*/false);
-      if (!AwaitPolicy(acted + 1)) break;
-    } else {
-      RefreshPolicy(/*wait=*/false);
-    }
-    if (!policy_error_.ok()) break;
-    if (!policy_.has_value() || policy_->version() != acted) version_unrolls_ = 0;
   }
-  CloseStream();
-  if (!config_.trace_file.empty()) WriteTrace();
+  sender_.Close();
+  if (trace_.has_value()) trace_->Flush();
   WriteStatus("done", /*force=*/true);
-  return policy_error_;  // OK, unless a policy could not be had (e.g. credentials refused).
+  // OK, unless something this actor cannot retry stopped it.
+  return !error_.ok() ? error_ : policies_.error();
 }
 
 void Actor::WriteStatus(const char* state, bool force) {
@@ -493,54 +361,6 @@ void Actor::WriteStatus(const char* state, bool force) {
   const absl::Status written = WriteStatusFile(config_.status_file, std::move(fields));
   if (!written.ok()) {
     std::fprintf(stderr, "%s: status: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
-  }
-}
-
-void Actor::Trace(const v1::Unroll& u) {
-  const int E = u.num_envs(), n = u.num_agents(), k = u.state_size();
-  if (u.intrinsic_rewards_size() != int64_t{u.length()} * E * n) {
-    trace_gap_ = true;  // A malformed response: the learner rejects the unroll too.
-    return;
-  }
-  const bool diagnostics = u.contributions_size() == u.intrinsic_rewards_size() &&
-                           u.global_rewards_size() * n == u.intrinsic_rewards_size() &&
-                           u.credit_shares_size() == u.intrinsic_rewards_size();
-  for (int t = 0; t < u.length(); ++t) {
-    const int64_t i = int64_t{t} * E;  // Env 0 of step t.
-    const int32_t* state = u.states().data() + i * k;
-    const int32_t* next = u.next_states().data() + i * k;
-    const int step = state[k - 1];  // The state's last entry is the episode's step count.
-    if (step == 0) {
-      trace_current_.clear();
-      trace_gap_ = false;
-    }
-    for (int a = 0; a < n; ++a) {
-      const int64_t j = i * n + a;
-      absl::StrAppendFormat(&trace_current_, "%d,%d,%d,%d,%d,%d,%.6g,%.6g,%.6g,%.6g\n", u.episode_ids(i), step, a,
-                            state[env::AgentIndex(a)], next[env::AgentIndex(a)], u.actions(j),
-                            diagnostics ? u.credit_shares(j) : 0.0f, diagnostics ? u.contributions(j) : 0.0f,
-                            u.intrinsic_rewards(j), diagnostics ? u.global_rewards(i) : 0.0f);
-    }
-    if (u.terminated(i) || u.truncated(i)) {
-      if (!trace_gap_) trace_last_.swap(trace_current_);
-      trace_current_.clear();
-      trace_gap_ = false;
-    }
-  }
-  if (!trace_last_.empty() && std::chrono::steady_clock::now() - trace_written_ >= config_.trace_period) {
-    WriteTrace();
-  }
-}
-
-void Actor::WriteTrace() {
-  trace_written_ = std::chrono::steady_clock::now();
-  if (trace_last_.empty()) return;
-  const absl::Status written = WriteFileAtomically(
-      config_.trace_file,
-      absl::StrCat("episode,t,agent,cell,next_cell,action,share,contribution,agent_reward,global_reward\n",
-                   trace_last_));
-  if (!written.ok()) {
-    std::fprintf(stderr, "%s: trace: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
   }
 }
 

@@ -10,14 +10,16 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "absl/synchronization/mutex.h"
+#include "actor/credit_trace.h"
+#include "actor/policy_client.h"
+#include "actor/stop_signal.h"
+#include "actor/unroll_sender.h"
 #include "common/env.h"
 #include "common/featurizer.h"
+#include "common/grpc_util.h"
 #include "common/metrics.h"
-#include "common/policy_mlp.h"
 #include "common/rng.h"
 #include "common/vec_env.h"
 #include "imca/v1/learner_service.grpc.pb.h"
@@ -80,7 +82,14 @@ ActorConfig DefaultActorConfig(absl::string_view scenario);
 // incarnation and sequence number if it had no ack: the learner drops a
 // resend it already accepted). So a restart of the reward server or the
 // learner loses none of this actor's data, and this actor's own death loses
-// at most the unroll in hand. Not thread-safe: one thread calls Run().
+// at most the unroll in hand.
+//
+// Its parts: a PolicyClient (the learner's policies), an UnrollSender (the
+// unroll stream, its acks and their watchdog) and a CreditTrace; Run() moves
+// the unroll in hand through the phases of Phase.
+//
+// Thread safety: one thread calls Run(); Stop() and metrics() may be called
+// from any thread.
 class Actor {
  public:
   // Errors: INVALID_ARGUMENT naming the field of `config` out of range
@@ -94,12 +103,26 @@ class Actor {
   Actor(const env::Scenario* scenario, const ActorConfig& config,
         std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server);
 
-  // Acts until a shutdown signal arrives or the learner reports its budget
-  // done. Blocks. Returns OK on either; INTERNAL if the learner publishes a
-  // policy that does not fit this scenario; FAILED_PRECONDITION if a
-  // synchronous learner asks for a share of env steps that is not a whole
-  // number of this actor's unrolls (sync_unrolls -1).
+  // Acts until Stop(), a shutdown signal, or the learner reports its budget
+  // done. Blocks. Returns OK on any of these; INTERNAL if the learner
+  // publishes a policy that does not fit this scenario; FAILED_PRECONDITION
+  // if a synchronous learner asks for a share of env steps that is not a
+  // whole number of this actor's unrolls (sync_unrolls -1); INVALID_ARGUMENT
+  // if the learner rejects an unroll as invalid; the refusal of a call
+  // (credentials: UNAUTHENTICATED, PERMISSION_DENIED).
   absl::Status Run();
+  // Asks Run() to return: the call in flight is cancelled and the unroll in
+  // hand dropped (as if the process had died). Thread-safe; returns at once.
+  void Stop() { stop_.Stop(); }
+
+  // The phases of the unroll in hand, in Run()'s order.
+  enum class Phase {
+    kActing,          // Rolling out a new unroll with the policy held.
+    kScoring,         // Asking the reward server for its intrinsic rewards (again after a failure).
+    kPushing,         // Sending it to the learner and waiting for its ack (again after a failure).
+    kChoosingPolicy,  // Delivered: taking a newer policy, or waiting for one (synchronous).
+    kDone,
+  };
 
   int64_t unrolls_pushed() const { return unrolls_pushed_; }
   // Pushes sent again after a lost stream.
@@ -113,73 +136,48 @@ class Actor {
   const metrics::Registry& metrics() const { return registry_; }
 
  private:
-  // Fetches a newer policy if there is one. With `wait`, retries until one
-  // is available (or shutdown). Returns false if none is available.
-  bool RefreshPolicy(bool wait);
-  // Blocks (long-polling GetPolicy) until the learner publishes a version
-  // >= min_version, or goes back to an older one (a restart from an older
-  // checkpoint). Returns false on shutdown or when the learner is done.
-  bool AwaitPolicy(int64_t min_version);
-  // Both of the above: GetPolicy(min_version), retrying errors with backoff
-  // if `retry`; with `until_newer`, long-polls until a version >= min_version
-  // arrives instead of returning true on "not modified".
-  bool FetchPolicy(int64_t min_version, bool retry, bool until_newer);
-  // Makes `policy` the acting policy; false (and policy_error_ set) if it
-  // does not fit this scenario.
-  bool Adopt(const v1::Policy& policy);
+  // The policy client's check of a policy before it is taken: with
+  // sync_unrolls -1, its synchronous share must be whole unrolls.
+  absl::Status Admit(const v1::Policy& policy);
   void Rollout(v1::Unroll* unroll);
   void SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
                      float* probs);
   absl::Status Score(v1::Unroll* unroll);
-  // Sends *unroll (moved in and back out, not copied) and waits for its ack.
-  // OK when the learner has it or dropped it for good (stale, a duplicate,
-  // or acted with a policy the learner no longer has); UNAVAILABLE (and
-  // other transport errors) when it must be sent again; INVALID_ARGUMENT
-  // when the learner refuses it as invalid or over its cap; OUT_OF_RANGE
-  // once the learner is done.
+  // Sends *unroll (moved in and back out) through the sender. OK when the
+  // learner has it or dropped it for good (stale, a duplicate, or acted with
+  // a policy the learner no longer has: then the learner's policy is taken);
+  // UNAVAILABLE (and other transport errors) when it must be sent again;
+  // INVALID_ARGUMENT when the learner refuses it as invalid or over its cap;
+  // OUT_OF_RANGE once the learner is done.
   absl::Status Push(v1::Unroll* unroll);
+  // The phase after a failed Score or push: `retry` after a backoff if the
+  // failure is transient; kDone (error_ set if it is an error) if not.
+  Phase AfterFailure(const absl::Status& status, Phase retry, const char* peer, Backoff* backoff);
+  // The phase after an unroll was delivered.
+  Phase AfterDelivery(int64_t version_acted);
   // Writes config_.status_file if status_period has passed since the last
   // write (or `force`).
   void WriteStatus(const char* state, bool force);
-  void CloseStream();
-  bool LearnerDone();
-  // Appends env 0's scored steps of `unroll` to the episode trace.
-  void Trace(const v1::Unroll& unroll);
-  void WriteTrace();
+  struct Counters;
+  // Registers the actor's families in `registry`.
+  static Counters RegisterMetrics(metrics::Registry* registry);
 
   const env::Scenario* scenario_;
   const ActorConfig config_;
   const env::Featurizer featurizer_;
   std::unique_ptr<v1::LearnerService::Stub> learner_;
   std::unique_ptr<v1::RewardService::Stub> reward_;
-  std::optional<PolicyMlp> policy_;
-  absl::Status policy_error_;
-  std::chrono::steady_clock::time_point policy_failure_logged_{};
+  StopSignal stop_;
   env::VecEnv envs_;
   env::VecEnv eval_envs_;
   Rng rng_;
-
-  // The ack watchdog: while Push waits for an ack, `ack_wait_since_` is set
-  // and a thread started by Run() cancels the stream past ack_timeout.
-  void WatchAcks();
-  // Registers the actor's families in registry_ (from the constructor).
-  void RegisterMetrics();
-  absl::Mutex watch_mu_;
-  bool watching_ ABSL_GUARDED_BY(watch_mu_) = false;
-  std::optional<std::chrono::steady_clock::time_point> ack_wait_since_ ABSL_GUARDED_BY(watch_mu_);
-  grpc::ClientContext* waiting_context_ ABSL_GUARDED_BY(watch_mu_) = nullptr;
-
-  std::unique_ptr<grpc::ClientContext> stream_context_;
-  std::unique_ptr<grpc::ClientReaderWriter<v1::PushUnrollsRequest, v1::PushUnrollsResponse>> stream_;
-  int stream_unrolls_ = 0;
   const uint64_t incarnation_;
   int64_t sequence_ = 0;  // Of the newest unroll acted.
   int64_t unrolls_pushed_ = 0;
   int64_t unrolls_resent_ = 0;
   int64_t transitions_scored_ = 0;
+  absl::Status error_;  // Why Run() stops, if for an error not the policy client's.
   std::chrono::steady_clock::time_point status_written_{};
-  // A stream that was up (had an ack) broke: the next one is a reconnect.
-  bool stream_broken_ = false;
 
   metrics::Registry registry_;
   struct Counters {
@@ -195,9 +193,12 @@ class Actor {
     metrics::Gauge* policy_version;
   };
   Counters counters_;
-  int version_unrolls_ = 0;  // Unrolls pushed with the current policy version.
+  int version_unrolls_ = 0;  // Unrolls delivered that were acted with the current policy version.
   int sync_unrolls_ = 0;     // In effect: config_.sync_unrolls, or as the policy asks.
-  uint64_t learner_incarnation_ = 0;  // Of the learner that served policy_.
+
+  PolicyClient policies_;
+  UnrollSender sender_;
+  std::optional<CreditTrace> trace_;
 
   // Scratch buffers, sized once.
   std::vector<float> obs_;
@@ -209,13 +210,6 @@ class Actor {
   std::unique_ptr<bool[]> terminated_;
   std::unique_ptr<bool[]> truncated_;
   std::vector<env::EpisodeEnd> finished_;
-
-  // Episode trace (trace_file): CSV rows of env 0's current episode, of the
-  // last finished one, and whether the current one lost an unroll.
-  std::string trace_current_;
-  std::string trace_last_;
-  bool trace_gap_ = false;
-  std::chrono::steady_clock::time_point trace_written_{};
 };
 
 }  // namespace imca::actor

@@ -22,32 +22,49 @@
 namespace imca {
 namespace {
 
-// The real learner service, but PushUnrolls ends the stream with
-// UNAVAILABLE right after the learner accepted unroll number `drop_ack_of`
-// (its ack is lost), and reads unroll number `hang_on` and then never
-// answers until the client cancels.
+using PushStream = learner::LearnerServiceImpl::PushStream;
+
+// The real PushUnrolls stream with hooks: `after_read` sees each request read
+// and `before_write` each ack; either returning false ends the stream there
+// (the learner service's loop sees the client gone).
+class HookedStream final : public PushStream {
+ public:
+  HookedStream(PushStream* real, std::function<bool(const v1::PushUnrollsRequest&)> after_read,
+               std::function<bool(const v1::PushUnrollsResponse&)> before_write)
+      : real_(real), after_read_(std::move(after_read)), before_write_(std::move(before_write)) {}
+  void SendInitialMetadata() override { real_->SendInitialMetadata(); }
+  bool NextMessageSize(uint32_t* size) override { return real_->NextMessageSize(size); }
+  bool Read(v1::PushUnrollsRequest* request) override { return real_->Read(request) && after_read_(*request); }
+  using grpc::internal::WriterInterface<v1::PushUnrollsResponse>::Write;
+  bool Write(const v1::PushUnrollsResponse& ack, grpc::WriteOptions options) override {
+    return before_write_(ack) && real_->Write(ack, options);
+  }
+
+ private:
+  PushStream* real_;
+  const std::function<bool(const v1::PushUnrollsRequest&)> after_read_;
+  const std::function<bool(const v1::PushUnrollsResponse&)> before_write_;
+};
+
+// The real learner service, whose PushUnrolls loses the ack of the learner's
+// accepted unroll number `drop_ack_of` (the stream ends before it), and reads
+// unroll number `hang_on` and then never answers until the client cancels.
 class FlakyLearnerService final : public v1::LearnerService::Service {
  public:
   FlakyLearnerService(learner::Learner* learner, int drop_ack_of, int hang_on)
-      : learner_(learner), real_(learner), drop_ack_of_(drop_ack_of), hang_on_(hang_on) {}
+      : real_(learner), drop_ack_of_(drop_ack_of), hang_on_(hang_on) {}
 
   grpc::Status PushUnrolls(grpc::ServerContext* context,
                            grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) override {
-    v1::PushUnrollsRequest request;
-    while (stream->Read(&request)) {
-      const int arrived = ++arrived_;
-      if (arrived == hang_on_) {
-        while (!context->IsCancelled()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-        return grpc::Status(grpc::StatusCode::CANCELLED, "injected: no ack until cancelled");
-      }
-      const absl::Status status = learner_->Push(std::move(*request.mutable_unroll()));
-      if (absl::IsOutOfRange(status) || absl::IsUnavailable(status)) return ToGrpcStatus(status);
-      if (status.ok() && ++accepted_ == drop_ack_of_) {
-        return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: stream lost before the ack");
-      }
-      if (!stream->Write(learner::AckOf(status, learner_->CurrentPolicy()->version()))) break;
-    }
-    return grpc::Status::OK;
+    HookedStream hooked(
+        stream,
+        [&](const v1::PushUnrollsRequest&) {
+          if (++arrived_ != hang_on_) return true;
+          while (!context->IsCancelled()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+          return false;  // Injected: no ack until cancelled.
+        },
+        [&](const v1::PushUnrollsResponse& ack) { return !ack.accepted() || ++accepted_ != drop_ack_of_; });
+    return real_.PushUnrollsInternal(context, &hooked);
   }
   grpc::Status GetPolicy(grpc::ServerContext* context, const v1::GetPolicyRequest* request,
                          v1::Policy* response) override {
@@ -59,7 +76,6 @@ class FlakyLearnerService final : public v1::LearnerService::Service {
   }
 
  private:
-  learner::Learner* learner_;
   learner::LearnerServiceImpl real_;
   const int drop_ack_of_, hang_on_;
   std::atomic<int> arrived_{0}, accepted_{0};
@@ -156,6 +172,57 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
   (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
 }
 
+// Stop() from another thread ends Run() with OK while the learner still
+// trains, without the process-wide shutdown (so tests after this one run).
+TEST(ActorTest, StopEndsRunFromAnotherThread) {
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  learner::LearnerConfig learner_config;
+  learner_config.batch_steps = 8 * 16;
+  learner_config.synchronous = true;  // The actor also waits for policies.
+  learner_config.actors = 1;
+  learner_config.checkpoint_every = 0;
+  learner_config.checkpoint_seconds = 0;
+  learner_config.ppo.hidden = 16;
+  auto learner = learner::Learner::Create(scenario->get(), learner_config);
+  ASSERT_TRUE(learner.ok()) << learner.status();
+  learner::LearnerServiceImpl learner_service(learner->get());
+  reward::ScorerConfig scorer_config;
+  auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
+  ASSERT_TRUE(scorer.ok());
+  reward::RewardServiceImpl reward(scenario->get(), scorer->get(), "count", scorer_config, "");
+  int learner_port = 0, reward_port = 0;
+  auto learner_server = StartServer("127.0.0.1:0", {&learner_service}, &learner_port);
+  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
+  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
+  std::thread trainer([&] { EXPECT_TRUE((*learner)->Run().ok()); });
+  actor::ActorConfig config;
+  config.num_envs = 8;
+  config.unroll_length = 16;
+  config.eval_envs = 1;
+  actor::Actor actor(scenario->get(), config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
+                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  std::atomic<bool> finished{false};
+  std::thread acting([&] {
+    const absl::Status status = actor.Run();
+    EXPECT_TRUE(status.ok()) << status;
+    finished = true;
+  });
+  while ((*learner)->Status().policy_version() < 3 && !finished) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(finished) << "the actor stopped by itself";
+  actor.Stop();
+  acting.join();
+  EXPECT_FALSE(ShutdownRequested());
+  EXPECT_FALSE((*learner)->Status().done());
+  EXPECT_GE(actor.unrolls_pushed(), 3);
+  (*learner)->Stop();
+  trainer.join();
+  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+}
+
 // The learner an actor talks to is replaced by one that starts over at
 // version 0 (a restart with no checkpoint to go on from), in synchronous
 // mode: the actor's unrolls in hand are ahead of it, and after refetching
@@ -172,14 +239,13 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
 
   grpc::Status PushUnrolls(grpc::ServerContext* context,
                            grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) override {
-    v1::PushUnrollsRequest request;
-    while (stream->Read(&request)) {
-      if (Switch()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "injected: learner restarted");
-      const absl::Status status = Current()->Push(std::move(*request.mutable_unroll()));
-      if (absl::IsOutOfRange(status) || absl::IsUnavailable(status)) return ToGrpcStatus(status);
-      if (!stream->Write(learner::AckOf(status, Current()->CurrentPolicy()->version()))) break;
-    }
-    return grpc::Status::OK;
+    // A stream open when the switch comes ends there (the learner is gone);
+    // the actor's next one reaches the second learner.
+    HookedStream hooked(
+        stream, [this](const v1::PushUnrollsRequest&) { return !Switch(); },
+        [](const v1::PushUnrollsResponse&) { return true; });
+    Switch();
+    return (switched_ ? second_service_ : first_service_).PushUnrollsInternal(context, &hooked);
   }
   grpc::Status GetPolicy(grpc::ServerContext* context, const v1::GetPolicyRequest* request,
                          v1::Policy* response) override {
@@ -192,7 +258,6 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
   }
 
  private:
-  learner::Learner* Current() { return switched_ ? second_ : first_; }
   // True the first time: switch_when held and the first learner is gone.
   bool Switch() {
     if (switched_ || !switch_when_()) return false;
@@ -212,8 +277,7 @@ class SwitchingLearnerService final : public v1::LearnerService::Service {
 // One actor with `actor_config` against `first`, then, once `switch_when`
 // holds, against `second` (as a learner restarted on the same address), with
 // a count reward server; both learners train meanwhile. True if the actor
-// finished (its learner's budget done) within `limit`; else it is ended with
-// RequestShutdown(), so a test that calls this must be last in this file.
+// finished (its learner's budget done) within `limit`; else it is stopped.
 bool ActsThroughARestart(const env::Scenario* scenario, learner::Learner* first, learner::Learner* second,
                          std::function<bool()> switch_when, const actor::ActorConfig& actor_config,
                          std::chrono::seconds limit) {
@@ -243,7 +307,7 @@ bool ActsThroughARestart(const env::Scenario* scenario, learner::Learner* first,
   }
   const bool done = finished;
   if (!done) {
-    RequestShutdown();
+    actor.Stop();
     second->Stop();
   }
   acting.join();
@@ -264,7 +328,6 @@ actor::ActorConfig SmallActor(int envs, int length) {
   return config;
 }
 
-// The last two in this file (ActsThroughARestart).
 TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok()) << scenario.status();

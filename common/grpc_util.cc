@@ -163,13 +163,15 @@ Backoff::Backoff()
     : state_(static_cast<uint64_t>(getpid()) * 0x9e3779b97f4a7c15ULL ^ reinterpret_cast<uintptr_t>(this) ^
              static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count())) {}
 
-void Backoff::Wait() {
+void Backoff::Wait() { Wait(ShutdownRequested); }
+
+void Backoff::Wait(const std::function<bool()>& stopped) {
   const int64_t cap_ms = std::min<int64_t>(5000, int64_t{50} << std::min(attempt_, 10));
   ++attempt_;
   uint64_t s = state_;
   const int64_t delay_ms = static_cast<int64_t>(Rng::SplitMix64(s) % static_cast<uint64_t>(cap_ms + 1));
   state_ = s;
-  for (int64_t waited = 0; waited < delay_ms && !ShutdownRequested(); waited += 50) {
+  for (int64_t waited = 0; waited < delay_ms && !stopped(); waited += 50) {
     std::this_thread::sleep_for(std::chrono::milliseconds(std::min<int64_t>(50, delay_ms - waited)));
   }
 }

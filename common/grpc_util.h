@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -87,8 +88,10 @@ class Backoff {
   // The jitter is seeded per process and object, so that many clients that
   // lost one server do not retry in lockstep.
   Backoff();
-  // Sleeps for the next delay (interruptible by shutdown, checked every 50 ms).
+  // Sleeps for the next delay, interruptible by shutdown (checked every
+  // 50 ms), or by `stopped` in the second form.
   void Wait();
+  void Wait(const std::function<bool()>& stopped);
   void Reset() { attempt_ = 0; }
 
  private:

@@ -50,6 +50,10 @@ v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version
 grpc::Status LearnerServiceImpl::PushUnrolls(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) {
+  return PushUnrollsInternal(context, stream);
+}
+
+grpc::Status LearnerServiceImpl::PushUnrollsInternal(grpc::ServerContext* context, PushStream* stream) {
   absl::StatusOr<ConcurrencyLimiter::Slot> slot = streams_.Acquire();
   if (!slot.ok()) {
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,

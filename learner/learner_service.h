@@ -27,9 +27,15 @@ class LearnerServiceImpl final : public v1::LearnerService::Service {
 
   explicit LearnerServiceImpl(Learner* learner, int max_streams = kDefaultMaxStreams);
 
+  using PushStream = grpc::ServerReaderWriterInterface<v1::PushUnrollsResponse, v1::PushUnrollsRequest>;
+
   grpc::Status PushUnrolls(
       grpc::ServerContext* context,
       grpc::ServerReaderWriter<v1::PushUnrollsResponse, v1::PushUnrollsRequest>* stream) override;
+  // PushUnrolls over any stream (the seam of Reverb's InsertStreamInternal):
+  // one ack per unroll read, in order, until the stream or the learner ends.
+  // Tests feed it a stream that fails on cue instead of copying this loop.
+  grpc::Status PushUnrollsInternal(grpc::ServerContext* context, PushStream* stream);
   grpc::Status GetPolicy(grpc::ServerContext* context, const v1::GetPolicyRequest* request,
                          v1::Policy* response) override;
   grpc::Status GetStatus(grpc::ServerContext* context, const v1::GetStatusRequest* request,
