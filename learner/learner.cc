@@ -16,6 +16,7 @@
 #include "learner/algorithms/maddpg/maddpg.h"
 #include "learner/algorithms/mappo/mappo.h"
 #include "learner/lap.h"
+#include "nn/threads.h"
 
 namespace imca::learner {
 namespace {
@@ -99,6 +100,7 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
   if (config.max_policy_lag < 0) return absl::InvalidArgumentError("max_policy_lag must be >= 0");
   if (config.queue_capacity < 1) return absl::InvalidArgumentError("queue_capacity must be >= 1");
   if (config.edti && config.algo != Algo::kMappo) return absl::InvalidArgumentError("edti is MAPPO's (algo mappo)");
+  nn::SetTorchThreads(config.threads);  // Once per process (nn/threads.h).
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Algorithm> algorithm, MakeAlgorithm(scenario, config));
   auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(algorithm)));
   if (config.max_batch_bytes < 1) return absl::InvalidArgumentError("max_batch_bytes must be >= 1");

@@ -1,5 +1,8 @@
 #include "nn/archive.h"
 
+#include <sstream>
+#include <utility>
+
 #include "absl/strings/str_cat.h"
 #include "common/atomic_file.h"
 
@@ -7,17 +10,23 @@ namespace imca::nn {
 
 absl::Status SaveArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::OutputArchive&)>& fill) {
-  return WriteFileAtomically(path, [&](std::ostream& out) {
-    try {
-      torch::serialize::OutputArchive archive;
-      archive.write("tag", c10::IValue(tag));
-      fill(archive);
-      archive.save_to(out);
-    } catch (const std::exception& e) {
-      return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", e.what()));
-    }
-    return absl::OkStatus();
-  });
+  absl::StatusOr<std::string> bytes = SerializeArchive(tag, fill);
+  if (!bytes.ok()) return absl::InternalError(absl::StrCat("writing snapshot '", path, "': ", bytes.status().message()));
+  return WriteFileAtomically(path, *bytes);
+}
+
+absl::StatusOr<std::string> SerializeArchive(const std::string& tag,
+                                             const std::function<void(torch::serialize::OutputArchive&)>& fill) {
+  std::ostringstream out;
+  try {
+    torch::serialize::OutputArchive archive;
+    archive.write("tag", c10::IValue(tag));
+    fill(archive);
+    archive.save_to(out);
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat("serialising snapshot '", tag, "': ", e.what()));
+  }
+  return std::move(out).str();
 }
 
 absl::Status LoadArchive(const std::string& path, const std::string& tag,

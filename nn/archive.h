@@ -9,6 +9,7 @@
 #include <string>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 
 namespace imca::nn {
 
@@ -16,19 +17,25 @@ namespace imca::nn {
 // rename). Errors: INTERNAL naming the path.
 absl::Status SaveArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::OutputArchive&)>& fill);
+// The same file's bytes, in memory. Errors: INTERNAL.
+absl::StatusOr<std::string> SerializeArchive(const std::string& tag,
+                                             const std::function<void(torch::serialize::OutputArchive&)>& fill);
+
 // Reads `path`, checks its "tag", then calls `read` (which may throw and
 // should swap state in only at its end). Errors: NOT_FOUND (unreadable),
 // FAILED_PRECONDITION (other tag), DATA_LOSS (missing or bad entries).
 absl::Status LoadArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::InputArchive&)>& read);
-// The learned scorers' snapshot: an optional joint and an optional local
-// model (each with Write/Read(archive, prefix)) and one counter, under `tag`.
-// Load reads into fresh models from `make_joint` / `make_local` and swaps them
-// in only when everything was read. Errors: as SaveArchive / LoadArchive.
+// The learned novelties' snapshot: an optional joint and an optional local
+// model (each with Write/Read(archive, prefix)) and one counter, under `tag`,
+// as bytes (SerializeArchive). Load reads into fresh models from
+// `make_joint` / `make_local` and swaps them in only when everything was
+// read. Errors: as SerializeArchive / LoadArchive.
 template <typename Model>
-absl::Status SaveModels(const std::string& path, const std::string& tag, const std::optional<Model>& joint,
-                        const std::optional<Model>& local, const std::string& counter_name, int64_t counter) {
-  return SaveArchive(path, tag, [&](torch::serialize::OutputArchive& archive) {
+absl::StatusOr<std::string> SerializeModels(const std::string& tag, const std::optional<Model>& joint,
+                                            const std::optional<Model>& local, const std::string& counter_name,
+                                            int64_t counter) {
+  return SerializeArchive(tag, [&](torch::serialize::OutputArchive& archive) {
     if (joint) joint->Write(archive, "joint.");
     if (local) local->Write(archive, "local.");
     archive.write(counter_name, torch::tensor(counter, torch::kInt64));

@@ -39,7 +39,7 @@ ABSL_FLAG(double, sf_lr, kKinds.sf.learning_rate, "sf: Adam learning rate of psi
 ABSL_FLAG(double, rnd_lr, kKinds.rnd.learning_rate, "rnd: Adam learning rate of the predictor");
 ABSL_FLAG(double, rnd_update_proportion, kKinds.rnd.update_proportion,
           "rnd: share of each request's transitions the predictor trains on");
-ABSL_FLAG(int, threads, kKinds.rnd.threads, "LibTorch intra-op threads (rnd, sf)");
+ABSL_FLAG(int, threads, kKinds.threads, "LibTorch intra-op threads (rnd, sf)");
 ABSL_FLAG(std::optional<std::string>, credit, std::nullopt,
           "credit mode: none|independent|shared|imca (default: the reward kind's; --list)");
 ABSL_FLAG(std::string, permutation, imca::reward::PermutationName(kScorer.permutation),
@@ -96,7 +96,7 @@ std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig
       .AddExact("sf_lr", kinds.sf.learning_rate)
       .AddExact("rnd_lr", kinds.rnd.learning_rate)
       .AddExact("rnd_update_proportion", kinds.rnd.update_proportion)
-      .Add("threads", kinds.rnd.threads)
+      .Add("threads", kinds.threads)
       .Add("snapshot_every", absl::GetFlag(FLAGS_snapshot_every))
       .Add("journal_fsync", absl::GetFlag(FLAGS_journal_fsync))
       .Text();
@@ -160,10 +160,9 @@ int main(int argc, char** argv) {
   reward::RewardKindConfig kinds;
   kinds.rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
   kinds.rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
-  kinds.rnd.threads = absl::GetFlag(FLAGS_threads);
+  kinds.threads = absl::GetFlag(FLAGS_threads);
   kinds.sf.gamma = absl::GetFlag(FLAGS_sf_gamma);
   kinds.sf.learning_rate = absl::GetFlag(FLAGS_sf_lr);
-  kinds.sf.threads = absl::GetFlag(FLAGS_threads);
   kinds.influence.eta = absl::GetFlag(FLAGS_eta);
   kinds.influence.beta_t = absl::GetFlag(FLAGS_beta_t);
   kinds.influence.log_form = absl::GetFlag(FLAGS_influence_log);

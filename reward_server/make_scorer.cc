@@ -2,7 +2,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "reward_server/count_scorer.h"
+#include "nn/threads.h"
+#include "reward_server/novelty/count_novelty.h"
 
 namespace imca::reward {
 
@@ -26,6 +27,7 @@ ScorerConfig DefaultScorerConfig(const std::string& kind) {
 absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, const env::Scenario& scenario,
                                                      const ScorerConfig& config, const RewardKindConfig& kinds) {
   if (kind == "count") return std::make_unique<CountNovelty>(scenario, config);
+  if (kind == "rnd" || kind == "sf") nn::SetTorchThreads(kinds.threads);  // Once per process.
   if (kind == "rnd") {
     auto rnd = RndNovelty::Create(scenario, config, kinds.rnd);
     if (!rnd.ok()) return rnd.status();

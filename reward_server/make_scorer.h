@@ -8,15 +8,19 @@
 #include "absl/status/statusor.h"
 #include "common/env.h"
 #include "reward_server/credit.h"
-#include "reward_server/influence_scorer.h"
-#include "reward_server/novelty.h"
-#include "reward_server/rnd_scorer.h"
-#include "reward_server/sf_scorer.h"
+#include "reward_server/novelty/influence_novelty.h"
+#include "reward_server/credit_scorer.h"
+#include "reward_server/novelty/novelty.h"
+#include "reward_server/novelty/rnd_novelty.h"
+#include "reward_server/novelty/sf_novelty.h"
 
 namespace imca::reward {
 
 // The kind-specific settings of every reward kind; each kind reads its own.
 struct RewardKindConfig {
+  // LibTorch intra-op threads of the process, for the learned kinds (rnd,
+  // sf); set once per process (nn/threads.h).
+  int threads = 1;
   RndConfig rnd;
   SfConfig sf;
   InfluenceConfig influence;  // eiti, edti (its `edti` is set from the kind).

@@ -35,7 +35,7 @@ struct ScoreOutput {
   float* influences = nullptr;      // [N][n][n], c_{i->j}; only if the scorer ReturnsInfluences().
 };
 
-// A global intrinsic reward with credit assignment (CreditScorer, novelty.h).
+// A global intrinsic reward with credit assignment (CreditScorer, credit_scorer.h).
 // Implementations are thread-safe: concurrent Score calls are serialised, and
 // a batch's transitions are processed in order, each seeing the updates of the
 // ones before it.

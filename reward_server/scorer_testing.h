@@ -11,8 +11,9 @@
 #include "gtest/gtest.h"
 #include "imca/v1/unroll.pb.h"
 #include "common/env.h"
-#include "reward_server/count_scorer.h"
-#include "reward_server/novelty.h"
+#include "reward_server/novelty/count_novelty.h"
+#include "reward_server/credit_scorer.h"
+#include "reward_server/novelty/novelty.h"
 #include "reward_server/scorer.h"
 
 namespace imca::testing {

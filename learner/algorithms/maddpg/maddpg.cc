@@ -85,7 +85,6 @@ struct Maddpg::Impl {
         A(scenario->num_actions()),
         D(featurizer.obs_dim()),
         generator(at::detail::createCPUGenerator(nn::SubSeed(config.seed, uint64_t{1} << 32))) {
-    torch::set_num_threads(std::max(1, config.threads));
     nets = BuildNets();
   }
 

@@ -349,7 +349,6 @@ struct PpoTrainer::Impl {
         critic_dim_(critic_dim),
         num_actions_(num_actions),
         generator_(at::detail::createCPUGenerator(config.seed)) {
-    torch::set_num_threads(config.threads);
     model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
     if (config.concurrent_critic) critic_thread_ = std::make_unique<SideThread>(config.threads);
   }

@@ -1,6 +1,6 @@
 // RND novelty with credit assignment (paper eq. 6, 9-10), on tiny networks
 // whose weights the test sets, and the learned-model properties.
-#include "reward_server/rnd_scorer.h"
+#include "reward_server/novelty/rnd_novelty.h"
 #include "reward_server/make_scorer.h"
 
 #include "reward_server/scorer_testing.h"
@@ -13,6 +13,7 @@
 #include "common/env.h"
 #include "common/test_unrolls.h"
 #include "gtest/gtest.h"
+#include "nn/threads.h"
 
 namespace imca::reward {
 namespace {
@@ -27,6 +28,7 @@ using Scored = ::imca::testing::ScoredBatch;
 class RndScorerTest : public ::testing::Test {
  protected:
   void SetUp() override {
+    nn::SetTorchThreads(1);  // As the reward server sets it (--threads).
     scenario_ = ::imca::testing::TextScenario();
     ASSERT_NE(scenario_, nullptr);
   }

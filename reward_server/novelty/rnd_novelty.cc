@@ -1,16 +1,15 @@
-#include "reward_server/rnd_scorer.h"
+#include "reward_server/novelty/rnd_novelty.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 
-#include "absl/base/thread_annotations.h"
 #include "absl/strings/str_cat.h"
-#include "absl/synchronization/mutex.h"
 #include "common/rng.h"
-#include "reward_server/joint_input.h"
-#include "reward_server/joint_key.h"
+#include "common/status_macros.h"
+#include "reward_server/novelty/joint_input.h"
+#include "reward_server/novelty/joint_key.h"
 #include "nn/archive.h"
 #include "nn/mlp.h"
 #include "nn/running_moments.h"
@@ -194,11 +193,9 @@ struct RndNovelty::Impl {
     }
   }
 
-  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
-  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
-  void TrainJoint(const TransitionBatch& batch, const torch::Tensor& inputs) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+  void TrainJoint(const TransitionBatch& batch, const torch::Tensor& inputs);
 
   const int n;
   const int num_actions;
@@ -208,11 +205,10 @@ struct RndNovelty::Impl {
   const JointKeyCodec codec;
   const std::string tag;
 
-  mutable absl::Mutex mu;
-  Rng rng ABSL_GUARDED_BY(mu);
-  std::optional<Model> joint ABSL_GUARDED_BY(mu);
-  std::optional<Model> local ABSL_GUARDED_BY(mu);
-  int64_t updates ABSL_GUARDED_BY(mu) = 0;
+  Rng rng;
+  std::optional<Model> joint;
+  std::optional<Model> local;
+  int64_t updates = 0;
 };
 
 void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
@@ -319,53 +315,35 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
 
 absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenario& scenario,
                                                              const ScorerConfig& config, const RndConfig& rnd) {
+  IMCA_RETURN_IF_ERROR(CheckNetwork("rnd", rnd.hidden, rnd.learning_rate, rnd.gamma));
   if (rnd.output < 1) return absl::InvalidArgumentError("rnd output size must be >= 1");
-  for (int h : rnd.hidden) {
-    if (h < 1) return absl::InvalidArgumentError("rnd hidden sizes must be >= 1");
-  }
-  if (!(rnd.learning_rate > 0)) return absl::InvalidArgumentError("rnd learning rate must be > 0");
   if (!(rnd.update_proportion > 0 && rnd.update_proportion <= 1)) {
     return absl::InvalidArgumentError("rnd update proportion must be in (0, 1]");
   }
-  if (!(rnd.gamma >= 0 && rnd.gamma < 1)) return absl::InvalidArgumentError("rnd gamma must be in [0, 1)");
-  torch::set_num_threads(std::max(1, rnd.threads));
   return std::unique_ptr<RndNovelty>(new RndNovelty(std::make_unique<Impl>(scenario, config, rnd)));
 }
 
-RndNovelty::RndNovelty(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+RndNovelty::RndNovelty(std::unique_ptr<Impl> impl)
+    : LearnedNovelty("rnd", impl->config.credit), impl_(std::move(impl)) {}
 RndNovelty::~RndNovelty() = default;
 
-absl::Status RndNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  absl::MutexLock lock(&impl_->mu);
-  const bool local = out.local != nullptr;
-  if (local ? !impl_->local : !impl_->joint) {
-    return absl::InternalError(absl::StrCat("rnd: no ", local ? "local" : "joint", " model in credit mode ",
-                                            CreditName(impl_->config.credit)));
-  }
-  try {
-    if (local) {
-      impl_->ComputeLocal(batch, dry_run, out);
-    } else {
-      impl_->ComputeJoint(batch, dry_run, out);
-    }
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("rnd: ", e.what()));
-  }
-  return absl::OkStatus();
+void RndNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  impl_->ComputeJoint(batch, dry_run, out);
+}
+
+void RndNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  impl_->ComputeLocal(batch, dry_run, out);
 }
 
 void RndNovelty::FillStats(v1::RewardStats* stats) const {
-  absl::MutexLock lock(&impl_->mu);
   stats->set_model_updates(impl_->updates);
 }
 
-absl::Status RndNovelty::Save(const std::string& path) const {
-  absl::MutexLock lock(&impl_->mu);
-  return nn::SaveModels(path, impl_->tag, impl_->joint, impl_->local, "updates", impl_->updates);
+absl::StatusOr<std::string> RndNovelty::Serialize() const {
+  return nn::SerializeModels(impl_->tag, impl_->joint, impl_->local, "updates", impl_->updates);
 }
 
 absl::Status RndNovelty::Load(const std::string& path) {
-  absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
   const auto load = [&](const std::string& tag) {
@@ -386,7 +364,6 @@ absl::Status RndNovelty::Load(const std::string& path) {
 
 absl::Status RndNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
                                          const std::vector<float>& bias) {
-  absl::MutexLock lock(&impl_->mu);
   const bool is_local = net.rfind("local_", 0) == 0;
   std::optional<Model>& model = is_local ? impl_->local : impl_->joint;
   const std::string which = is_local ? net.substr(6) : net;

@@ -1,5 +1,5 @@
-#ifndef IMCA_REWARD_SERVER_RND_SCORER_H_
-#define IMCA_REWARD_SERVER_RND_SCORER_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_RND_NOVELTY_H_
+#define IMCA_REWARD_SERVER_NOVELTY_RND_NOVELTY_H_
 
 #include <memory>
 #include <string>
@@ -8,7 +8,7 @@
 #include "absl/status/statusor.h"
 #include "common/env.h"
 #include "reward_server/credit.h"
-#include "reward_server/novelty.h"
+#include "reward_server/novelty/learned_novelty.h"
 
 namespace imca::reward {
 
@@ -19,7 +19,6 @@ struct RndConfig {
   double update_proportion = 1.0;        // Share of each batch's transitions the predictor trains on.
   double gamma = 0.99;                   // Discount of the intrinsic return whose running std divides N.
   bool normalize = true;                 // Input mean/std (clip +-5) and bonus normalisation.
-  int threads = 1;                       // LibTorch intra-op threads.
 };
 
 // Random network distillation (paper eq. 6; docs/credit.md) on the encoded joint
@@ -34,8 +33,8 @@ struct RndConfig {
 // A request is scored with the predictor as it was before the request, then
 // the predictor takes one Adam step on the request's (S,U) inputs (a random
 // `update_proportion` of them; under permutation random, on a random slot
-// order of each). Thread-safe: one mutex serialises requests.
-class RndNovelty final : public Novelty {
+// order of each). Not thread-safe (Novelty).
+class RndNovelty final : public LearnedNovelty {
  public:
   // Errors: INVALID_ARGUMENT for bad config values.
   static absl::StatusOr<std::unique_ptr<RndNovelty>> Create(const env::Scenario& scenario,
@@ -43,10 +42,7 @@ class RndNovelty final : public Novelty {
                                                             const RndConfig& rnd);
   ~RndNovelty() override;
 
-  bool Supports(Credit credit) const override { return true; }
-  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
-  absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
 
   // Tests: sets layer `layer` of net "target" or "predictor" (the joint
@@ -57,6 +53,10 @@ class RndNovelty final : public Novelty {
                                 const std::vector<float>& bias);
 
  private:
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
+  absl::StatusOr<std::string> Serialize() const override;
+
   struct Impl;
   explicit RndNovelty(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
@@ -64,4 +64,4 @@ class RndNovelty final : public Novelty {
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_RND_SCORER_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_RND_NOVELTY_H_

@@ -1,5 +1,5 @@
 // Successor-feature control with credit assignment (paper eq. 7, 11-13).
-#include "reward_server/sf_scorer.h"
+#include "reward_server/novelty/sf_novelty.h"
 #include "reward_server/make_scorer.h"
 
 #include "reward_server/scorer_testing.h"
@@ -12,6 +12,7 @@
 #include "common/env.h"
 #include "common/test_unrolls.h"
 #include "gtest/gtest.h"
+#include "nn/threads.h"
 
 namespace imca::reward {
 namespace {
@@ -28,7 +29,10 @@ class SfScorerTest : public ::testing::Test {
     scenario_ = ::imca::testing::TextScenario(map_text);
     ASSERT_NE(scenario_, nullptr);
   }
-  void SetUp() override { Use("1..T2\n"); }
+  void SetUp() override {
+    nn::SetTorchThreads(1);  // As the reward server sets it (--threads).
+    Use("1..T2\n");
+  }
 
   // One env, T = transitions; cells are (agent 1, agent 2) before and after.
   Scored Score(Scorer& scorer, const std::vector<std::vector<int32_t>>& now,

@@ -1,17 +1,15 @@
-#include "reward_server/sf_scorer.h"
+#include "reward_server/novelty/sf_novelty.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 
-#include "absl/base/thread_annotations.h"
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
-#include "absl/synchronization/mutex.h"
 #include "common/rng.h"
 #include "common/status_macros.h"
-#include "reward_server/joint_input.h"
+#include "reward_server/novelty/joint_input.h"
 #include "nn/archive.h"
 #include "nn/mlp.h"
 
@@ -126,7 +124,7 @@ struct SfNovelty::Impl {
   }
 
   // N_ep including this visit; counted unless dry_run.
-  uint32_t Visit(uint64_t key, bool dry_run) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) {
+  uint32_t Visit(uint64_t key, bool dry_run) {
     auto it = visits.find(key);
     uint32_t count = it != visits.end() ? it->second : 0;
     if (it == visits.end()) {
@@ -137,7 +135,7 @@ struct SfNovelty::Impl {
     return count + 1;
   }
 
-  void EndRequest(bool dry_run) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu) {
+  void EndRequest(bool dry_run) {
     if (dry_run) return;
     ++requests;
     if (requests % sf.target_update == 0) {
@@ -158,10 +156,8 @@ struct SfNovelty::Impl {
     encoder.EncodeState(state, order, x.data());
     return torch::tensor(x).unsqueeze(0);
   }
-  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
-  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out)
-      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu);
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
 
   const int n;
   const ScorerConfig config;
@@ -169,12 +165,11 @@ struct SfNovelty::Impl {
   const JointInputEncoder encoder;
   const std::string tag;
 
-  mutable absl::Mutex mu;
-  std::optional<SfModel> joint ABSL_GUARDED_BY(mu);
-  std::optional<SfModel> local ABSL_GUARDED_BY(mu);
-  int64_t requests ABSL_GUARDED_BY(mu) = 0;
-  absl::flat_hash_map<uint64_t, uint32_t> visits ABSL_GUARDED_BY(mu);
-  absl::flat_hash_map<uint64_t, uint32_t> previous_visits ABSL_GUARDED_BY(mu);
+  std::optional<SfModel> joint;
+  std::optional<SfModel> local;
+  int64_t requests = 0;
+  absl::flat_hash_map<uint64_t, uint32_t> visits;
+  absl::flat_hash_map<uint64_t, uint32_t> previous_visits;
 };
 
 void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
@@ -250,53 +245,36 @@ void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, c
 
 absl::StatusOr<std::unique_ptr<SfNovelty>> SfNovelty::Create(const env::Scenario& scenario,
                                                            const ScorerConfig& config, const SfConfig& sf) {
+  IMCA_RETURN_IF_ERROR(CheckNetwork("sf", sf.hidden, sf.learning_rate, sf.gamma));
   if (sf.features < 1) return absl::InvalidArgumentError("sf features must be >= 1");
-  for (int h : sf.hidden) {
-    if (h < 1) return absl::InvalidArgumentError("sf hidden sizes must be >= 1");
-  }
-  if (!(sf.gamma >= 0 && sf.gamma < 1)) return absl::InvalidArgumentError("sf gamma must be in [0, 1)");
-  if (!(sf.learning_rate > 0)) return absl::InvalidArgumentError("sf learning rate must be > 0");
   if (sf.target_update < 1) return absl::InvalidArgumentError("sf target update period must be >= 1");
-  torch::set_num_threads(std::max(1, sf.threads));
   return std::unique_ptr<SfNovelty>(new SfNovelty(std::make_unique<Impl>(scenario, config, sf)));
 }
 
-SfNovelty::SfNovelty(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+SfNovelty::SfNovelty(std::unique_ptr<Impl> impl)
+    : LearnedNovelty("sf", impl->config.credit), impl_(std::move(impl)) {}
+
+void SfNovelty::EndRequest(bool dry_run) { impl_->EndRequest(dry_run); }
 SfNovelty::~SfNovelty() = default;
 
-absl::Status SfNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  absl::MutexLock lock(&impl_->mu);
-  const bool local = out.local != nullptr;
-  if (local ? !impl_->local : !impl_->joint) {
-    return absl::InternalError(absl::StrCat("sf: no ", local ? "local" : "joint", " model in credit mode ",
-                                            CreditName(impl_->config.credit)));
-  }
-  try {
-    if (local) {
-      impl_->ComputeLocal(batch, dry_run, out);
-    } else {
-      impl_->ComputeJoint(batch, dry_run, out);
-    }
-    impl_->EndRequest(dry_run);
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("sf: ", e.what()));
-  }
-  return absl::OkStatus();
+void SfNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  impl_->ComputeJoint(batch, dry_run, out);
+}
+
+void SfNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  impl_->ComputeLocal(batch, dry_run, out);
 }
 
 void SfNovelty::FillStats(v1::RewardStats* stats) const {
-  absl::MutexLock lock(&impl_->mu);
   stats->set_model_updates(impl_->requests);
   stats->set_distinct_keys(static_cast<int64_t>(impl_->visits.size()));
 }
 
-absl::Status SfNovelty::Save(const std::string& path) const {
-  absl::MutexLock lock(&impl_->mu);
-  return nn::SaveModels(path, impl_->tag, impl_->joint, impl_->local, "requests", impl_->requests);
+absl::StatusOr<std::string> SfNovelty::Serialize() const {
+  return nn::SerializeModels(impl_->tag, impl_->joint, impl_->local, "requests", impl_->requests);
 }
 
 absl::Status SfNovelty::Load(const std::string& path) {
-  absl::MutexLock lock(&impl_->mu);
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
   return nn::LoadModels<SfModel>(
@@ -306,7 +284,6 @@ absl::Status SfNovelty::Load(const std::string& path) {
 
 absl::Status SfNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,
                                         const std::vector<float>& bias) {
-  absl::MutexLock lock(&impl_->mu);
   const bool is_local = net.rfind("local_", 0) == 0;
   std::optional<SfModel>& model = is_local ? impl_->local : impl_->joint;
   const std::string which = is_local ? net.substr(6) : net;
@@ -319,14 +296,12 @@ absl::Status SfNovelty::SetLinearForTest(const std::string& net, int layer, cons
 }
 
 std::vector<float> SfNovelty::PhiForTest(const int32_t* state) const {
-  absl::MutexLock lock(&impl_->mu);
   torch::NoGradGuard no_grad;
   const torch::Tensor y = impl_->joint->phi->forward(impl_->EncodeForTest(state)).squeeze(0).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
 }
 
 std::vector<float> SfNovelty::PsiForTest(const int32_t* state) const {
-  absl::MutexLock lock(&impl_->mu);
   const torch::Tensor y = impl_->joint->Psi(impl_->EncodeForTest(state)).squeeze(0).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
 }

@@ -1,5 +1,5 @@
-#ifndef IMCA_REWARD_SERVER_JOINT_INPUT_H_
-#define IMCA_REWARD_SERVER_JOINT_INPUT_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_JOINT_INPUT_H_
+#define IMCA_REWARD_SERVER_NOVELTY_JOINT_INPUT_H_
 
 #include <cstdint>
 
@@ -51,4 +51,4 @@ class JointInputEncoder {
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_JOINT_INPUT_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_JOINT_INPUT_H_

@@ -1,4 +1,4 @@
-#include "reward_server/count_scorer.h"
+#include "reward_server/novelty/count_novelty.h"
 
 #include <cmath>
 #include <cstdio>
@@ -31,12 +31,10 @@ CountNovelty::CountNovelty(const env::Scenario& scenario, const ScorerConfig& co
 uint32_t CountNovelty::JointCount(const int32_t* state, const int32_t* actions) const {
   int order[env::kMaxAgents];
   codec_.SlotOrder(state, config_.permutation == Permutation::kCanonical, order);
-  absl::MutexLock lock(&mu_);
   return store_.Get(kGlobal, codec_.GlobalKey(state, actions, order));
 }
 
 absl::Status CountNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  absl::MutexLock lock(&mu_);
   for (int64_t i = 0; i < batch.size; ++i) {
     ComputeOne(batch.states + i * k_, batch.actions + i * n_, batch.action_probs + i * n_ * num_actions_, dry_run,
                out, i);
@@ -90,7 +88,6 @@ void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, cons
 }
 
 void CountNovelty::FillStats(v1::RewardStats* stats) const {
-  absl::MutexLock lock(&mu_);
   stats->set_distinct_keys(store_.table(kGlobal).size());
   stats->set_distinct_local_keys(store_.table(kLocal).size());
 }

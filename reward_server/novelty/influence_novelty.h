@@ -1,14 +1,12 @@
-#ifndef IMCA_REWARD_SERVER_INFLUENCE_SCORER_H_
-#define IMCA_REWARD_SERVER_INFLUENCE_SCORER_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_INFLUENCE_NOVELTY_H_
+#define IMCA_REWARD_SERVER_NOVELTY_INFLUENCE_NOVELTY_H_
 
 #include <string>
 
-#include "absl/base/thread_annotations.h"
-#include "absl/synchronization/mutex.h"
 #include "common/env.h"
-#include "reward_server/counted_novelty.h"
+#include "reward_server/novelty/counted_novelty.h"
 #include "reward_server/credit.h"
-#include "reward_server/novelty.h"
+#include "reward_server/novelty/novelty.h"
 
 namespace imca::reward {
 
@@ -29,7 +27,6 @@ namespace imca::reward {
 //   eiti: eta / sqrt(N_i(s'_i) + 1) + beta_t * sum_{j != i} c_{i->j};
 //   edti: eta / sqrt(N_i(s'_i) + 1), with every c_{i->j} returned as
 //         influences for the learner's value-of-interaction term.
-// Thread-safe (one mutex).
 struct InfluenceConfig {
   bool edti = false;       // false: EITI.
   double eta = 10.0;       // Curiosity coefficient (EDTI's README: gamma_dec = 10 with success +1000).
@@ -37,6 +34,8 @@ struct InfluenceConfig {
   bool log_form = false;   // The paper's log ratio instead of the released code's 1 - 1/x.
 };
 
+// The EITI/EDTI novelty above. Not thread-safe (Novelty): its CreditScorer
+// serialises calls.
 class InfluenceNovelty final : public CountedNovelty {
  public:
   InfluenceNovelty(const env::Scenario& scenario, const ScorerConfig& config, const InfluenceConfig& influence);
@@ -48,7 +47,7 @@ class InfluenceNovelty final : public CountedNovelty {
 
  private:
   float Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
-                  const absl::flat_hash_map<uint64_t, uint32_t>& pending) const ABSL_SHARED_LOCKS_REQUIRED(mu_);
+                  const absl::flat_hash_map<uint64_t, uint32_t>& pending) const;
   std::string ConfigTag() const override;
 
   const std::string scenario_tag_;
@@ -63,4 +62,4 @@ class InfluenceNovelty final : public CountedNovelty {
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_INFLUENCE_SCORER_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_INFLUENCE_NOVELTY_H_

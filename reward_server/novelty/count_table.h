@@ -1,5 +1,5 @@
-#ifndef IMCA_REWARD_SERVER_COUNT_TABLE_H_
-#define IMCA_REWARD_SERVER_COUNT_TABLE_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_COUNT_TABLE_H_
+#define IMCA_REWARD_SERVER_NOVELTY_COUNT_TABLE_H_
 
 #include <sys/types.h>
 
@@ -117,4 +117,4 @@ class CountStore {
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_COUNT_TABLE_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_COUNT_TABLE_H_

@@ -1,17 +1,15 @@
-#ifndef IMCA_REWARD_SERVER_COUNT_SCORER_H_
-#define IMCA_REWARD_SERVER_COUNT_SCORER_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_COUNT_NOVELTY_H_
+#define IMCA_REWARD_SERVER_NOVELTY_COUNT_NOVELTY_H_
 
 #include <string>
 #include <vector>
 
-#include "absl/base/thread_annotations.h"
-#include "absl/synchronization/mutex.h"
 #include "common/env.h"
 #include "common/rng.h"
-#include "reward_server/counted_novelty.h"
+#include "reward_server/novelty/counted_novelty.h"
 #include "reward_server/credit.h"
-#include "reward_server/joint_key.h"
-#include "reward_server/novelty.h"
+#include "reward_server/novelty/joint_key.h"
+#include "reward_server/novelty/novelty.h"
 
 namespace imca::reward {
 
@@ -27,7 +25,7 @@ namespace imca::reward {
 // every lookup and increment; random increments the key of a random
 // permutation of the pairs (lookups use agent order), as the paper's 4.3.
 // For independent credit, permutation other than off makes homogeneous agents
-// share one local table. Thread-safe (one mutex).
+// share one local table. Not thread-safe: its CreditScorer serialises calls.
 class CountNovelty final : public CountedNovelty {
  public:
   CountNovelty(const env::Scenario& scenario, const ScorerConfig& config);
@@ -42,7 +40,7 @@ class CountNovelty final : public CountedNovelty {
 
  private:
   void ComputeOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
-                  const NoveltyOutput& out, int64_t i) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+                  const NoveltyOutput& out, int64_t i);
   std::string ConfigTag() const override;
 
   const std::string scenario_tag_;  // Scenario name and map size, for snapshots.
@@ -54,9 +52,9 @@ class CountNovelty final : public CountedNovelty {
 
   static constexpr int kGlobal = 0;  // The joint table.
   static constexpr int kLocal = 1;   // The per-agent tables (one key space).
-  Rng rng_ ABSL_GUARDED_BY(mu_);
+  Rng rng_;
 };
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_COUNT_SCORER_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_COUNT_NOVELTY_H_

@@ -1,6 +1,6 @@
 // EITI / EDTI influence counts (BASELINES.md 1.2-1.5) against numbers worked
 // by hand for 2 agents on a 5-cell line, and the learner-facing outputs.
-#include "reward_server/influence_scorer.h"
+#include "reward_server/novelty/influence_novelty.h"
 
 #include <cmath>
 #include <cstdio>

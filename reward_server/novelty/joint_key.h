@@ -1,5 +1,5 @@
-#ifndef IMCA_REWARD_SERVER_JOINT_KEY_H_
-#define IMCA_REWARD_SERVER_JOINT_KEY_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_JOINT_KEY_H_
+#define IMCA_REWARD_SERVER_NOVELTY_JOINT_KEY_H_
 
 #include <cstdint>
 
@@ -48,4 +48,4 @@ class JointKeyCodec {
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_JOINT_KEY_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_JOINT_KEY_H_

@@ -1,5 +1,5 @@
-#ifndef IMCA_REWARD_SERVER_NOVELTY_H_
-#define IMCA_REWARD_SERVER_NOVELTY_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_NOVELTY_H_
+#define IMCA_REWARD_SERVER_NOVELTY_NOVELTY_H_
 
 #include <cstdint>
 #include <fstream>
@@ -9,6 +9,7 @@
 
 #include "absl/status/status.h"
 #include "imca/v1/reward_service.pb.h"
+#include "absl/status/statusor.h"
 #include "reward_server/credit.h"
 #include "reward_server/scorer.h"
 
@@ -33,10 +34,11 @@ struct NoveltyOutput {
 // A global novelty bonus: the part of a reward kind that is not credit
 // assignment. CreditScorer calls it without knowing its kind, as Reverb's
 // Table calls its ItemSelector; adding a kind means writing one of these.
-// Implementations are thread-safe: concurrent Compute calls are serialised,
-// and a batch's transitions are processed in order, each seeing the updates of
+// A batch's transitions are processed in order, each seeing the updates of
 // the ones before it (counts) or the model as it was before the batch
-// (learned kinds), as the kind's header states.
+// (learned kinds), as the kind's header states. Not thread-safe: as Reverb's
+// selectors leave locking to their table, a novelty leaves it to its owner
+// (CreditScorer), which serialises every call.
 class Novelty {
  public:
   virtual ~Novelty() = default;
@@ -53,8 +55,18 @@ class Novelty {
   virtual absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) = 0;
   // Fills the kind-specific fields of `stats`.
   virtual void FillStats(v1::RewardStats* stats) const = 0;
-  // Writes all learned state to `path` atomically (tmp file + rename).
-  virtual absl::Status Save(const std::string& path) const = 0;
+
+  // All learned state, copied out so that it can be written without holding
+  // the owner's lock (Score is not blocked by I/O).
+  class Snapshot {
+   public:
+    virtual ~Snapshot() = default;
+    // Writes the state to `path` atomically (tmp file + rename). Safe
+    // against the novelty's other calls; the owner serialises writes.
+    virtual absl::Status Write(const std::string& path) const = 0;
+  };
+  // Copies the state (fast; count kinds also start the next journal).
+  virtual absl::StatusOr<std::unique_ptr<Snapshot>> TakeSnapshot() = 0;
   // Replaces all learned state with the file's. Errors: NOT_FOUND, DATA_LOSS,
   // FAILED_PRECONDITION if the file was written under another configuration.
   virtual absl::Status Load(const std::string& path) = 0;
@@ -72,39 +84,6 @@ class Novelty {
   virtual std::optional<int64_t> DurableTransitions() const { return std::nullopt; }
 };
 
-// The one credit rule (docs/credit.md) over any Novelty:
-//   none:        every output 0, shares 1/n; the novelty is not called.
-//   shared:      r_i^a = R_i = beta * N(S, U).
-//   independent: r_i^a = beta * N_a (the kind's local novelty); R_i is
-//                reported as the team sum.
-//   imca:        p^a = softmax(r^a / tau), r_i^a = p^a * R_i / divisor^a.
-// contributions report r^a (imca) or N_a (independent), 0 otherwise; shares
-// report p^a for imca, 1/n for shared, and r_i^a / sum_b r_i^b for
-// independent (1/n when the sum is not positive; with EITI's negative
-// influences a share can fall outside [0, 1]: they are diagnostics only).
-// Thread-safe if the novelty is.
-class CreditScorer : public Scorer {
- public:
-  // `n` agents. The caller checks novelty->Supports(config.credit) first
-  // (MakeScorer does).
-  CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n);
-
-  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
-  bool ReturnsInfluences() const override { return novelty_->ReturnsInfluences(); }
-  void FillStats(v1::RewardStats* stats) const override { novelty_->FillStats(stats); }
-  absl::Status Save(const std::string& path) const override { return novelty_->Save(path); }
-  absl::Status Load(const std::string& path) override { return novelty_->Load(path); }
-  absl::Status Restore(const std::string& path, bool sync) override { return novelty_->Restore(path, sync); }
-  std::optional<int64_t> DurableTransitions() const override { return novelty_->DurableTransitions(); }
-
-  Novelty& novelty() { return *novelty_; }
-
- private:
-  const std::unique_ptr<Novelty> novelty_;
-  const ScorerConfig config_;
-  const int n_;
-};
-
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_NOVELTY_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_NOVELTY_H_

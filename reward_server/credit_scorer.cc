@@ -1,4 +1,4 @@
-#include "reward_server/novelty.h"
+#include "reward_server/credit_scorer.h"
 
 #include <algorithm>
 #include <vector>
@@ -8,7 +8,42 @@
 namespace imca::reward {
 
 CreditScorer::CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n)
-    : novelty_(std::move(novelty)), config_(config), n_(n) {}
+    : returns_influences_(novelty->ReturnsInfluences()), novelty_(std::move(novelty)), config_(config), n_(n) {}
+
+absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  absl::MutexLock lock(&mu_);
+  return novelty_->Compute(batch, dry_run, out);
+}
+
+void CreditScorer::FillStats(v1::RewardStats* stats) const {
+  absl::MutexLock lock(&mu_);
+  novelty_->FillStats(stats);
+}
+
+absl::Status CreditScorer::Save(const std::string& path) const {
+  absl::MutexLock save_lock(&save_mu_);
+  std::unique_ptr<Novelty::Snapshot> snapshot;
+  {
+    absl::MutexLock lock(&mu_);
+    IMCA_ASSIGN_OR_RETURN(snapshot, novelty_->TakeSnapshot());
+  }
+  return snapshot->Write(path);
+}
+
+absl::Status CreditScorer::Load(const std::string& path) {
+  absl::MutexLock lock(&mu_);
+  return novelty_->Load(path);
+}
+
+absl::Status CreditScorer::Restore(const std::string& path, bool sync) {
+  absl::MutexLock lock(&mu_);
+  return novelty_->Restore(path, sync);
+}
+
+std::optional<int64_t> CreditScorer::DurableTransitions() const {
+  absl::MutexLock lock(&mu_);
+  return novelty_->DurableTransitions();
+}
 
 absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
   const int n = n_;
@@ -28,7 +63,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   if (config_.credit == Credit::kIndependent) {
     // The kind's local novelties land in contributions, reported as N_a.
     novelty.local = out.contributions;
-    IMCA_RETURN_IF_ERROR(novelty_->Compute(batch, dry_run, novelty));
+    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty));
     for (int64_t i = 0; i < N; ++i) {
       const float* local = out.contributions + i * n;
       float* rewards = out.agent_rewards + i * n;
@@ -43,7 +78,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   std::vector<float> joint(N);
   novelty.joint = joint.data();
   if (config_.credit == Credit::kShared) {
-    IMCA_RETURN_IF_ERROR(novelty_->Compute(batch, dry_run, novelty));
+    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty));
     for (int64_t i = 0; i < N; ++i) {
       out.global_rewards[i] = beta * joint[i];
       for (int a = 0; a < n; ++a) {
@@ -59,7 +94,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   std::vector<double> divisor(N * n, 1.0);
   novelty.contributions = out.contributions;
   novelty.agent_divisor = divisor.data();
-  IMCA_RETURN_IF_ERROR(novelty_->Compute(batch, dry_run, novelty));
+  IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty));
   for (int64_t i = 0; i < N; ++i) {
     out.global_rewards[i] = beta * joint[i];
     float* shares = out.shares + i * n;

@@ -1,4 +1,4 @@
-#include "reward_server/joint_input.h"
+#include "reward_server/novelty/joint_input.h"
 
 #include <algorithm>
 

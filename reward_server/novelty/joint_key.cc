@@ -1,4 +1,4 @@
-#include "reward_server/joint_key.h"
+#include "reward_server/novelty/joint_key.h"
 
 namespace imca::reward {
 namespace {

@@ -1,4 +1,4 @@
-#include "reward_server/influence_scorer.h"
+#include "reward_server/novelty/influence_novelty.h"
 
 #include <cmath>
 
@@ -65,7 +65,7 @@ InfluenceNovelty::InfluenceNovelty(const env::Scenario& scenario, const ScorerCo
 
 float InfluenceNovelty::Influence(const int32_t* state, const int32_t* actions, const int32_t* next, int i, int j,
                                   const absl::flat_hash_map<uint64_t, uint32_t>& pending) const {
-  auto count = [&](uint64_t key) ABSL_SHARED_LOCKS_REQUIRED(mu_) {
+  auto count = [&](uint64_t key) {
     auto it = pending.find(key);
     return static_cast<double>(store_.Get(kTransitions, key)) + (it == pending.end() ? 0.0 : it->second);
   };
@@ -85,7 +85,6 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, bool dry_ru
   if (out.local == nullptr) {
     return absl::InternalError("eiti/edti: only independent credit (a local novelty) is served");
   }
-  absl::MutexLock lock(&mu_);
   absl::flat_hash_map<uint64_t, uint32_t> pending;
   for (int64_t t = 0; t < batch.length; ++t) {
     // 1. Add every env's transition of this step (not those out of a reset state).
@@ -127,7 +126,6 @@ absl::Status InfluenceNovelty::Compute(const TransitionBatch& batch, bool dry_ru
 }
 
 void InfluenceNovelty::FillStats(v1::RewardStats* stats) const {
-  absl::ReaderMutexLock lock(&mu_);
   stats->set_distinct_keys(store_.table(kTransitions).size());
   stats->set_distinct_local_keys(store_.table(kCells).size());
 }

@@ -1,4 +1,4 @@
-#include "reward_server/count_table.h"
+#include "reward_server/novelty/count_table.h"
 
 #include <unistd.h>
 

@@ -7,7 +7,7 @@
 
 #include "common/env.h"
 #include "gtest/gtest.h"
-#include "reward_server/count_scorer.h"
+#include "reward_server/novelty/count_novelty.h"
 #include "reward_server/scorer_testing.h"
 
 namespace imca::reward {

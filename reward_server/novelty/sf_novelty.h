@@ -1,5 +1,5 @@
-#ifndef IMCA_REWARD_SERVER_SF_SCORER_H_
-#define IMCA_REWARD_SERVER_SF_SCORER_H_
+#ifndef IMCA_REWARD_SERVER_NOVELTY_SF_NOVELTY_H_
+#define IMCA_REWARD_SERVER_NOVELTY_SF_NOVELTY_H_
 
 #include <memory>
 #include <string>
@@ -8,7 +8,7 @@
 #include "absl/status/statusor.h"
 #include "common/env.h"
 #include "reward_server/credit.h"
-#include "reward_server/novelty.h"
+#include "reward_server/novelty/learned_novelty.h"
 
 namespace imca::reward {
 
@@ -18,7 +18,6 @@ struct SfConfig {
   double gamma = 0.95;                   // Successor-feature discount gamma_sf.
   double learning_rate = 1e-3;           // Adam, psi only.
   int target_update = 20;                // Requests between copies of psi into its target.
-  int threads = 1;                       // LibTorch intra-op threads.
 };
 
 // Successor-feature control (paper eq. 7, 11-13; docs/credit.md), for CreditScorer:
@@ -33,19 +32,16 @@ struct SfConfig {
 //   agent and cell).
 //   local (independent): a second SF over each agent's own cell.
 // A request is scored with psi as it was before it, then psi takes one Adam
-// step on the request's transitions. Thread-safe (one mutex).
-class SfNovelty final : public Novelty {
+// step on the request's transitions. Not thread-safe (Novelty).
+class SfNovelty final : public LearnedNovelty {
  public:
   // Errors: INVALID_ARGUMENT for bad config values.
   static absl::StatusOr<std::unique_ptr<SfNovelty>> Create(const env::Scenario& scenario,
                                                            const ScorerConfig& config, const SfConfig& sf);
   ~SfNovelty() override;
 
-  bool Supports(Credit credit) const override { return true; }
-  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
   // Models only: episodic visit counts are transient and start afresh.
-  absl::Status Save(const std::string& path) const override;
   absl::Status Load(const std::string& path) override;
 
   // Tests: set layer `layer` of "phi" or "psi" (joint model; "local_phi",
@@ -57,6 +53,11 @@ class SfNovelty final : public Novelty {
   std::vector<float> PsiForTest(const int32_t* state) const;
 
  private:
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
+  void EndRequest(bool dry_run) override;
+  absl::StatusOr<std::string> Serialize() const override;
+
   struct Impl;
   explicit SfNovelty(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
@@ -64,4 +65,4 @@ class SfNovelty final : public Novelty {
 
 }  // namespace imca::reward
 
-#endif  // IMCA_REWARD_SERVER_SF_SCORER_H_
+#endif  // IMCA_REWARD_SERVER_NOVELTY_SF_NOVELTY_H_

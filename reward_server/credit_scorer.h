@@ -1,0 +1,60 @@
+#ifndef IMCA_REWARD_SERVER_CREDIT_SCORER_H_
+#define IMCA_REWARD_SERVER_CREDIT_SCORER_H_
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/synchronization/mutex.h"
+#include "reward_server/credit.h"
+#include "reward_server/novelty/novelty.h"
+#include "reward_server/scorer.h"
+
+namespace imca::reward {
+
+// The one credit rule (docs/credit.md) over any Novelty:
+//   none:        every output 0, shares 1/n; the novelty is not called.
+//   shared:      r_i^a = R_i = beta * N(S, U).
+//   independent: r_i^a = beta * N_a (the kind's local novelty); R_i is
+//                reported as the team sum.
+//   imca:        p^a = softmax(r^a / tau), r_i^a = p^a * R_i / divisor^a.
+// contributions report r^a (imca) or N_a (independent), 0 otherwise; shares
+// report p^a for imca, 1/n for shared, and r_i^a / sum_b r_i^b for
+// independent (1/n when the sum is not positive; with EITI's negative
+// influences a share can fall outside [0, 1]: they are diagnostics only).
+// Thread-safe: one mutex serialises the novelty's calls (the credit rule runs
+// outside it); a snapshot is copied under it and written without it.
+class CreditScorer : public Scorer {
+ public:
+  // `n` agents. The caller checks novelty->Supports(config.credit) first
+  // (MakeScorer does).
+  CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n);
+
+  absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
+  bool ReturnsInfluences() const override { return returns_influences_; }
+  void FillStats(v1::RewardStats* stats) const override;
+  absl::Status Save(const std::string& path) const override;
+  absl::Status Load(const std::string& path) override;
+  absl::Status Restore(const std::string& path, bool sync) override;
+  std::optional<int64_t> DurableTransitions() const override;
+
+  // Tests: the novelty itself, for probes, while no other call is in flight.
+  Novelty& novelty() ABSL_NO_THREAD_SAFETY_ANALYSIS { return *novelty_; }
+
+ private:
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+
+  mutable absl::Mutex save_mu_ ABSL_ACQUIRED_BEFORE(mu_);  // Serialises snapshot writes.
+  mutable absl::Mutex mu_;
+  const bool returns_influences_;
+  const std::unique_ptr<Novelty> novelty_ ABSL_PT_GUARDED_BY(mu_);
+  const ScorerConfig config_;
+  const int n_;
+};
+
+}  // namespace imca::reward
+
+#endif  // IMCA_REWARD_SERVER_CREDIT_SCORER_H_

@@ -1,0 +1,60 @@
+#include "reward_server/novelty/learned_novelty.h"
+
+#include <exception>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "common/atomic_file.h"
+#include "common/status_macros.h"
+
+namespace imca::reward {
+namespace {
+
+class BytesSnapshot final : public Novelty::Snapshot {
+ public:
+  explicit BytesSnapshot(std::string bytes) : bytes_(std::move(bytes)) {}
+  absl::Status Write(const std::string& path) const override { return WriteFileAtomically(path, bytes_); }
+
+ private:
+  const std::string bytes_;
+};
+
+}  // namespace
+
+LearnedNovelty::LearnedNovelty(std::string kind, Credit credit) : kind_(std::move(kind)), credit_(credit) {}
+
+absl::Status LearnedNovelty::CheckNetwork(absl::string_view kind, const std::vector<int>& hidden,
+                                          double learning_rate, double gamma) {
+  for (int h : hidden) {
+    if (h < 1) return absl::InvalidArgumentError(absl::StrCat(kind, " hidden sizes must be >= 1"));
+  }
+  if (!(learning_rate > 0)) return absl::InvalidArgumentError(absl::StrCat(kind, " learning rate must be > 0"));
+  if (!(gamma >= 0 && gamma < 1)) return absl::InvalidArgumentError(absl::StrCat(kind, " gamma must be in [0, 1)"));
+  return absl::OkStatus();
+}
+
+absl::Status LearnedNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  const bool local = out.local != nullptr;
+  if (credit_ == Credit::kNone || local != (credit_ == Credit::kIndependent)) {
+    return absl::InternalError(absl::StrCat(kind_, ": no ", local ? "local" : "joint", " model in credit mode ",
+                                            CreditName(credit_)));
+  }
+  try {
+    if (local) {
+      ComputeLocal(batch, dry_run, out);
+    } else {
+      ComputeJoint(batch, dry_run, out);
+    }
+    EndRequest(dry_run);
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat(kind_, ": ", e.what()));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<Novelty::Snapshot>> LearnedNovelty::TakeSnapshot() {
+  IMCA_ASSIGN_OR_RETURN(std::string bytes, Serialize());
+  return std::make_unique<BytesSnapshot>(std::move(bytes));
+}
+
+}  // namespace imca::reward
