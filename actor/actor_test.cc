@@ -111,19 +111,71 @@ class FailingOnceScorer final : public testing::ForwardingScorer {
   std::atomic<int> calls_{0};
 };
 
+// A learner config for these tests: no checkpoints, a small network.
+learner::LearnerConfig TestLearnerConfig() {
+  learner::LearnerConfig config;
+  config.checkpoint_every = 0;
+  config.checkpoint_seconds = 0;
+  config.ppo.hidden = 16;
+  return config;
+}
+
+actor::ActorConfig SmallActor(int envs, int length) {
+  actor::ActorConfig config;
+  config.num_envs = envs;
+  config.unroll_length = length;
+  config.eval_envs = 1;
+  config.rpc_timeout = std::chrono::milliseconds(2000);
+  return config;
+}
+
+// `learner` and a count reward server (the binaries' default credit) on
+// loopback ports, until destroyed.
+class LoopbackServices {
+ public:
+  LoopbackServices(const env::Scenario* scenario, grpc::Service* learner) {
+    auto scorer = reward::MakeScorer("count", *scenario, scorer_config_);
+    EXPECT_TRUE(scorer.ok()) << scorer.status();
+    if (!scorer.ok()) return;
+    scorer_ = *std::move(scorer);
+    reward_ = std::make_unique<reward::RewardServiceImpl>(scenario, scorer_.get(), "count", scorer_config_, "");
+    auto learner_server = StartServer("127.0.0.1:0", {learner}, &learner_port_);
+    auto reward_server = StartServer("127.0.0.1:0", {reward_.get()}, &reward_port_);
+    EXPECT_TRUE(learner_server.ok() && reward_server.ok());
+    if (!learner_server.ok() || !reward_server.ok()) return;
+    learner_server_ = *std::move(learner_server);
+    reward_server_ = *std::move(reward_server);
+  }
+  ~LoopbackServices() {
+    if (learner_server_ != nullptr) learner_server_->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+    if (reward_server_ != nullptr) reward_server_->Shutdown(DeadlineIn(std::chrono::seconds(1)));
+  }
+  bool ok() const { return learner_server_ != nullptr && reward_server_ != nullptr; }
+  // An actor of `config` talking to both.
+  std::unique_ptr<actor::Actor> MakeActor(const env::Scenario* scenario, const actor::ActorConfig& config) const {
+    return std::make_unique<actor::Actor>(scenario, config,
+                                          MakeChannel("127.0.0.1:" + std::to_string(learner_port_)),
+                                          MakeChannel("127.0.0.1:" + std::to_string(reward_port_)));
+  }
+
+ private:
+  reward::ScorerConfig scorer_config_;
+  std::unique_ptr<reward::Scorer> scorer_;
+  std::unique_ptr<reward::RewardServiceImpl> reward_;
+  int learner_port_ = 0, reward_port_ = 0;
+  std::unique_ptr<grpc::Server> learner_server_, reward_server_;
+};
+
 TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothingTwice) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok()) << scenario.status();
   constexpr int kEnvs = 16, kLength = 16, kIterations = 8;
 
-  learner::LearnerConfig learner_config;
+  learner::LearnerConfig learner_config = TestLearnerConfig();
   learner_config.batch_steps = kEnvs * kLength;  // One unroll per iteration.
   learner_config.synchronous = false;
   learner_config.budget_steps = kIterations * kEnvs * kLength;
   learner_config.max_policy_lag = 100;
-  learner_config.checkpoint_every = 0;
-  learner_config.checkpoint_seconds = 0;
-  learner_config.ppo.hidden = 16;
   auto learner = learner::Learner::Create(scenario->get(), learner_config);
   ASSERT_TRUE(learner.ok()) << learner.status();
   FlakyLearnerService learner_service(learner->get(), /*drop_ack_of=*/3, /*hang_on=*/6);
@@ -177,31 +229,18 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
 TEST(ActorTest, StopEndsRunFromAnotherThread) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok()) << scenario.status();
-  learner::LearnerConfig learner_config;
+  learner::LearnerConfig learner_config = TestLearnerConfig();
   learner_config.batch_steps = 8 * 16;
   learner_config.synchronous = true;  // The actor also waits for policies.
   learner_config.actors = 1;
-  learner_config.checkpoint_every = 0;
-  learner_config.checkpoint_seconds = 0;
-  learner_config.ppo.hidden = 16;
   auto learner = learner::Learner::Create(scenario->get(), learner_config);
   ASSERT_TRUE(learner.ok()) << learner.status();
   learner::LearnerServiceImpl learner_service(learner->get());
-  reward::ScorerConfig scorer_config;
-  auto scorer = reward::MakeScorer("count", **scenario, scorer_config);
-  ASSERT_TRUE(scorer.ok());
-  reward::RewardServiceImpl reward(scenario->get(), scorer->get(), "count", scorer_config, "");
-  int learner_port = 0, reward_port = 0;
-  auto learner_server = StartServer("127.0.0.1:0", {&learner_service}, &learner_port);
-  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
-  ASSERT_TRUE(learner_server.ok() && reward_server.ok());
+  LoopbackServices services(scenario->get(), &learner_service);
+  ASSERT_TRUE(services.ok());
   std::thread trainer([&] { EXPECT_TRUE((*learner)->Run().ok()); });
-  actor::ActorConfig config;
-  config.num_envs = 8;
-  config.unroll_length = 16;
-  config.eval_envs = 1;
-  actor::Actor actor(scenario->get(), config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
-                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  std::unique_ptr<actor::Actor> acting_actor = services.MakeActor(scenario->get(), SmallActor(8, 16));
+  actor::Actor& actor = *acting_actor;
   std::atomic<bool> finished{false};
   std::thread acting([&] {
     const absl::Status status = actor.Run();
@@ -219,8 +258,6 @@ TEST(ActorTest, StopEndsRunFromAnotherThread) {
   EXPECT_GE(actor.unrolls_pushed(), 3);
   (*learner)->Stop();
   trainer.join();
-  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
-  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
 }
 
 // The learner an actor talks to is replaced by one that starts over at
@@ -282,20 +319,12 @@ bool ActsThroughARestart(const env::Scenario* scenario, learner::Learner* first,
                          std::function<bool()> switch_when, const actor::ActorConfig& actor_config,
                          std::chrono::seconds limit) {
   SwitchingLearnerService service(first, second, std::move(switch_when));
-  reward::ScorerConfig scorer_config;
-  auto scorer = reward::MakeScorer("count", *scenario, scorer_config);
-  EXPECT_TRUE(scorer.ok());
-  if (!scorer.ok()) return false;
-  reward::RewardServiceImpl reward(scenario, scorer->get(), "count", scorer_config, "");
-  int learner_port = 0, reward_port = 0;
-  auto learner_server = StartServer("127.0.0.1:0", {&service}, &learner_port);
-  auto reward_server = StartServer("127.0.0.1:0", {&reward}, &reward_port);
-  EXPECT_TRUE(learner_server.ok() && reward_server.ok());
-  if (!learner_server.ok() || !reward_server.ok()) return false;
+  LoopbackServices services(scenario, &service);
+  if (!services.ok()) return false;
   std::thread first_trainer([&] { EXPECT_TRUE(first->Run().ok()); });
   std::thread second_trainer([&] { EXPECT_TRUE(second->Run().ok()); });
-  actor::Actor actor(scenario, actor_config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
-                     MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  std::unique_ptr<actor::Actor> acting_actor = services.MakeActor(scenario, actor_config);
+  actor::Actor& actor = *acting_actor;
   std::atomic<bool> finished{false};
   std::thread acting([&] {
     EXPECT_TRUE(actor.Run().ok());
@@ -314,30 +343,16 @@ bool ActsThroughARestart(const env::Scenario* scenario, learner::Learner* first,
   first->Stop();
   first_trainer.join();
   second_trainer.join();
-  (*learner_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
-  (*reward_server)->Shutdown(DeadlineIn(std::chrono::seconds(1)));
   return done;
-}
-
-actor::ActorConfig SmallActor(int envs, int length) {
-  actor::ActorConfig config;
-  config.num_envs = envs;
-  config.unroll_length = length;
-  config.eval_envs = 1;
-  config.rpc_timeout = std::chrono::milliseconds(2000);
-  return config;
 }
 
 TEST(ActorFaultTest, ASynchronousActorFollowsALearnerThatStartedOver) {
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
   ASSERT_TRUE(scenario.ok()) << scenario.status();
   constexpr int kEnvs = 8, kLength = 16, kUnrollsPerVersion = 3;
-  learner::LearnerConfig config;
+  learner::LearnerConfig config = TestLearnerConfig();
   config.synchronous = true;
   config.batch_steps = kUnrollsPerVersion * kEnvs * kLength;
-  config.checkpoint_every = 0;
-  config.checkpoint_seconds = 0;
-  config.ppo.hidden = 16;
   config.budget_steps = 100 * config.batch_steps;
   auto first = learner::Learner::Create(scenario->get(), config);
   config.budget_steps = 4 * config.batch_steps;
@@ -363,10 +378,7 @@ TEST(ActorFaultTest, ASynchronousActorActsItsShareAgainForALearnerRestartedAtIts
   ASSERT_TRUE(scenario.ok()) << scenario.status();
   constexpr int kEnvs = 8, kLength = 16, kShareUnrolls = 2;
   constexpr int64_t kShare = kShareUnrolls * kEnvs * kLength;
-  learner::LearnerConfig config;
-  config.checkpoint_every = 0;
-  config.checkpoint_seconds = 0;
-  config.ppo.hidden = 16;
+  learner::LearnerConfig config = TestLearnerConfig();
   config.synchronous = true;
   config.actors = 2;  // The first waits for a second actor that never comes: it never trains.
   config.batch_steps = 2 * kShare;
