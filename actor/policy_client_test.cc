@@ -2,7 +2,6 @@
 // answers from a script (a narrow fake: the policies are a real learner's).
 #include "actor/policy_client.h"
 
-#include <atomic>
 #include <chrono>
 #include <memory>
 #include <thread>
@@ -30,10 +29,8 @@ class ScriptedLearner final : public v1::LearnerService::Service {
     absl::MutexLock lock(&mu_);
     done_ = true;
   }
-  int calls() const { return calls_; }
 
   grpc::Status GetPolicy(grpc::ServerContext*, const v1::GetPolicyRequest* request, v1::Policy* response) override {
-    ++calls_;
     absl::MutexLock lock(&mu_);
     auto newer = [&] {
       mu_.AssertHeld();
@@ -58,7 +55,6 @@ class ScriptedLearner final : public v1::LearnerService::Service {
   absl::Mutex mu_;
   v1::Policy policy_ ABSL_GUARDED_BY(mu_);
   bool done_ ABSL_GUARDED_BY(mu_) = false;
-  std::atomic<int> calls_{0};
 };
 
 class PolicyClientTest : public ::testing::Test {

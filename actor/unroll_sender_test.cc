@@ -22,10 +22,7 @@ class FakeStream final : public PushStream {
  public:
   FakeStream(Script script, std::vector<int64_t>* sequences) : script_(script), sequences_(sequences) {}
   void WaitForInitialMetadata() override {}
-  bool WritesDone() override {
-    writes_done_ = true;
-    return true;
-  }
+  bool WritesDone() override { return true; }
   grpc::Status Finish() override { return script_.finish; }
   bool NextMessageSize(uint32_t* size) override {
     *size = 1024;
@@ -52,7 +49,6 @@ class FakeStream final : public PushStream {
   std::vector<int64_t>* sequences_;
   int writes_ = 0;
   int64_t pending_ = -1;
-  bool writes_done_ = false;
 };
 
 class UnrollSenderTest : public ::testing::Test {

@@ -30,12 +30,12 @@ class LearnedNovelty : public Novelty {
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) final;
   absl::StatusOr<std::unique_ptr<Snapshot>> TakeSnapshot() final;
 
+ protected:
   // INVALID_ARGUMENT naming `kind`'s field out of range: every hidden width
   // >= 1, learning_rate > 0, gamma in [0, 1).
   static absl::Status CheckNetwork(absl::string_view kind, const std::vector<int>& hidden, double learning_rate,
                                    double gamma);
 
- protected:
   // `kind` names the novelty in errors ("rnd", "sf").
   LearnedNovelty(std::string kind, Credit credit);
 
