@@ -7,12 +7,11 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "common/atomic_file.h"
-#include "common/grpc_util.h"
-#include "common/json.h"
-#include "common/status_macros.h"
-#include "common/transport.h"
-#include "common/unroll_check.h"
+#include "base/status_macros.h"
+#include "protocol/unroll_check.h"
+#include "rpc/grpc_util.h"
+#include "rpc/service_flags.h"
+#include "rpc/transport.h"
 
 namespace imca::actor {
 
@@ -351,14 +350,14 @@ void Actor::WriteStatus(const char* state, bool force) {
   const auto now = std::chrono::steady_clock::now();
   if (!force && now - status_written_ < config_.status_period) return;
   status_written_ = now;
-  JsonObject fields;
-  fields.Add("actor_id", config_.actor_id)
-      .Add("incarnation", absl::StrFormat("%016x", incarnation_))
-      .Add("unrolls_pushed", unrolls_pushed_)
-      .Add("unrolls_resent", unrolls_resent_)
-      .Add("transitions_scored", transitions_scored_)
-      .Add("state", state);
-  const absl::Status written = WriteStatusFile(config_.status_file, std::move(fields));
+  v1::ActorStatus status;
+  status.set_actor_id(config_.actor_id);
+  status.set_incarnation(incarnation_);
+  status.set_unrolls_pushed(unrolls_pushed_);
+  status.set_unrolls_resent(unrolls_resent_);
+  status.set_transitions_scored(transitions_scored_);
+  status.set_state(state);
+  const absl::Status written = WriteStatusFile(config_.status_file, status);
   if (!written.ok()) {
     std::fprintf(stderr, "%s: status: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());
   }

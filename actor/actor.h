@@ -16,14 +16,14 @@
 #include "actor/policy_client.h"
 #include "actor/stop_signal.h"
 #include "actor/unroll_sender.h"
-#include "common/env.h"
-#include "common/featurizer.h"
-#include "common/grpc_util.h"
-#include "common/metrics.h"
-#include "common/rng.h"
-#include "common/vec_env.h"
+#include "base/rng.h"
+#include "env/env.h"
+#include "env/featurizer.h"
+#include "env/vec_env.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "imca/v1/reward_service.grpc.pb.h"
+#include "metrics/metrics.h"
+#include "rpc/grpc_util.h"
 
 namespace imca::actor {
 

@@ -10,14 +10,14 @@
 #include <memory>
 #include <thread>
 
-#include "common/env.h"
-#include "common/grpc_util.h"
+#include "env/env.h"
 #include "gtest/gtest.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 #include "reward_server/scorer_testing.h"
+#include "rpc/grpc_util.h"
 
 namespace imca {
 namespace {

@@ -12,14 +12,15 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "actor/actor.h"
-#include "common/env.h"
-#include "common/grpc_util.h"
-#include "common/json.h"
-#include "common/metrics_flags.h"
-#include "common/scenario_flags.h"
-#include "common/transport.h"
-#include "common/transport_flags.h"
-#include "common/unroll_check.h"
+#include "base/json.h"
+#include "env/env.h"
+#include "env/scenario_flags.h"
+#include "protocol/unroll_check.h"
+#include "rpc/grpc_util.h"
+#include "rpc/metrics_flags.h"
+#include "rpc/service_flags.h"
+#include "rpc/transport.h"
+#include "rpc/transport_flags.h"
 
 ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
 ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
@@ -36,20 +37,9 @@ ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hos
 ABSL_FLAG(int, rpc_timeout_ms, static_cast<int>(kDefaults.rpc_timeout.count()), "deadline of every RPC");
 ABSL_FLAG(int, ack_timeout_ms, static_cast<int>(kDefaults.ack_timeout.count()),
           "longest wait for the learner's ack of one unroll; past it the stream is cancelled and the unroll resent");
-ABSL_FLAG(int, signal_exit_code, 0,
-          "exit code when SIGINT/SIGTERM stops the actor before the learner is done (Kubernetes "
-          "Jobs: 143, so that an evicted actor is replaced rather than counted as finished)");
 ABSL_FLAG(int, sync_unrolls, kDefaults.sync_unrolls,
           "act this many unrolls with each policy version, then wait for the next version (0: asynchronous; "
           "-1: as the learner's policy asks, its batch_steps / actors env steps for a synchronous learner)");
-ABSL_FLAG(bool, print_config, false,
-          "resolve the configuration (defaults, the scenario's tuning, the flags given), validate it, print it as "
-          "JSON (flag name: value) and exit: 0, or 2 with the error");
-ABSL_FLAG(bool, list, false,
-          "print this binary's choices and limits (scenarios, the unroll cap, exit codes) as JSON and exit: what "
-          "the Python tools ask instead of copying them");
-ABSL_FLAG(std::string, status_file, "",
-          "if set, write a one-line JSON progress record here every second (for a supervisor; docs/reliability.md)");
 ABSL_FLAG(std::string, trace_file, "",
           "if set, write env 0's newest finished training episode with its credit shares here (CSV)");
 
@@ -81,7 +71,12 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA actor: steps environments and streams unrolls");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
-  if (absl::GetFlag(FLAGS_list)) {
+  const absl::StatusOr<ServiceFlags> service_flags = ServiceFlagsFromFlags();
+  if (!service_flags.ok()) {
+    std::fprintf(stderr, "actor: %s\n", std::string(service_flags.status().message()).c_str());
+    return 2;
+  }
+  if (service_flags->list) {
     std::printf("%s\n", JsonObject()
                             .Add("program", "actor")
                             .Add("scenarios", env::ScenarioNames())
@@ -119,9 +114,9 @@ int main(int argc, char** argv) {
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
   config.ack_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_ack_timeout_ms));
   config.trace_file = absl::GetFlag(FLAGS_trace_file);
-  config.status_file = absl::GetFlag(FLAGS_status_file);
+  config.status_file = service_flags->status_file;
   if (absl::Status valid = actor::Actor::Validate(config); !valid.ok()) return fail(std::string(valid.message()));
-  if (absl::GetFlag(FLAGS_print_config)) {
+  if (service_flags->print_config) {
     std::printf("%s\n", ConfigJson(config).c_str());
     return 0;
   }
@@ -131,8 +126,6 @@ int main(int argc, char** argv) {
     config.seed = static_cast<uint64_t>(std::chrono::system_clock::now().time_since_epoch().count()) ^
                   std::hash<std::string>{}(id);
   }
-  const int signal_exit_code = absl::GetFlag(FLAGS_signal_exit_code);
-  if (signal_exit_code < 0 || signal_exit_code > 255) return fail("--signal_exit_code must be in [0, 255]");
 
   absl::StatusOr<TransportConfig> transport = ClientTransportFromFlags();
   if (!transport.ok()) return fail(std::string(transport.status().message()));
@@ -165,5 +158,5 @@ int main(int argc, char** argv) {
   if (!status.ok()) return fail(std::string(status.message()));
   std::fprintf(stderr, "%s: stopped after %lld unrolls\n", id.c_str(),
                static_cast<long long>(actor.unrolls_pushed()));
-  return ShutdownRequested() ? signal_exit_code : 0;
+  return ShutdownRequested() ? service_flags->signal_exit_code : 0;
 }

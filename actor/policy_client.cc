@@ -5,8 +5,8 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "common/grpc_util.h"
-#include "common/transport.h"
+#include "rpc/grpc_util.h"
+#include "rpc/transport.h"
 
 namespace imca::actor {
 

@@ -9,9 +9,9 @@
 
 #include "absl/status/status.h"
 #include "actor/stop_signal.h"
-#include "common/env.h"
-#include "common/policy_mlp.h"
+#include "env/env.h"
 #include "imca/v1/learner_service.grpc.pb.h"
+#include "protocol/policy_mlp.h"
 
 namespace imca::actor {
 

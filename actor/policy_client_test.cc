@@ -7,10 +7,10 @@
 #include <thread>
 
 #include "absl/synchronization/mutex.h"
-#include "common/featurizer.h"
-#include "common/grpc_util.h"
+#include "env/featurizer.h"
 #include "gtest/gtest.h"
 #include "learner/learner.h"
+#include "rpc/grpc_util.h"
 
 namespace imca::actor {
 namespace {

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <utility>
 
-#include "common/grpc_util.h"
+#include "rpc/grpc_util.h"
 
 namespace imca::actor {
 

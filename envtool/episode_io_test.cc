@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "common/env.h"
+#include "env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

@@ -8,7 +8,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "common/env.h"
+#include "env/env.h"
 
 struct GifFileType;  // gif_lib.h
 

@@ -10,7 +10,7 @@
 #include <tuple>
 #include <vector>
 
-#include "common/env.h"
+#include "env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

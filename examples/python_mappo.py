@@ -8,7 +8,7 @@ own trainer.
 
 Without --reward_server it starts build/bin/reward_server (count novelty,
 IMCA credit) on a free port itself. The PPO settings are ./imca train's for
-coop_nav (learner/learner_config.h, common/env.cc's tuning): 64 envs x 32
+coop_nav (learner/learner_config.h, env/env.cc's tuning): 64 envs x 32
 steps = 2048 joint steps per iteration, 4 epochs of 4 minibatches, lr 1e-3
 with separate actor and critic Adam optimisers, clip 0.2, entropy 0.01,
 gamma 0.99 (both heads), GAE lambda 0.95, 64-wide tanh MLPs, a shared
@@ -93,9 +93,9 @@ class RunningMoments:
 
 
 def save_policy(actor, obs_dim, num_actions, version, path):
-    """The actor in the learner's export layout ("mlp_tanh", policy.<i>.*)."""
+    """The actor in the learner's export layout (MLP_TANH, policy.<i>.*)."""
     from imca.v1 import learner_service_pb2 as pb
-    proto = pb.Policy(version=version, architecture="mlp_tanh", obs_dim=obs_dim, num_actions=num_actions)
+    proto = pb.Policy(version=version, architecture=pb.Policy.MLP_TANH, obs_dim=obs_dim, num_actions=num_actions)
     linear = [m for m in actor if isinstance(m, nn.Linear)]
     for i, layer in enumerate(linear):
         for part, tensor in (("weight", layer.weight), ("bias", layer.bias)):

@@ -3,7 +3,7 @@
 
 #include <memory>
 
-#include "common/env.h"
+#include "env/env.h"
 #include "fuzz/fuzz_check.h"
 #include "learner/learner.h"
 

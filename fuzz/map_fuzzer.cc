@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "common/env.h"
-#include "common/grid_map.h"
-#include "common/vec_env.h"
+#include "env/env.h"
+#include "env/grid_map.h"
+#include "env/vec_env.h"
 #include "fuzz/fuzz_check.h"
 
 using namespace imca;

@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "common/env.h"
+#include "env/env.h"
 #include "fuzz/fuzz_check.h"
-#include "google/protobuf/stubs/logging.h"
 #include "fuzz/score_kinds.h"
+#include "google/protobuf/stubs/logging.h"
 #include "imca/v1/reward_service.pb.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"

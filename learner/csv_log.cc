@@ -8,8 +8,8 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "common/atomic_file.h"
-#include "common/status_macros.h"
+#include "base/atomic_file.h"
+#include "base/status_macros.h"
 
 namespace imca::learner {
 namespace {

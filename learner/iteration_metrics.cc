@@ -1,6 +1,8 @@
 #include "learner/iteration_metrics.h"
 
+#include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "absl/strings/str_cat.h"
 
@@ -32,17 +34,6 @@ const std::vector<Column>& IterationColumns() {
       {"policy_lag", "%.3f", 1, "Mean versions between an unroll's acting policy and the trained one.",
        &R::policy_lag, Export::kCsvOnly, nullptr},
       {"dropped_stale", "%.0f", 1, "Unrolls dropped as stale so far.", &R::dropped_stale, Export::kCsvOnly, nullptr},
-      {"policy_loss", "%.6g", 1, "PPO clipped policy loss of the iteration (MADDPG: actor loss).", &R::policy_loss,
-       Export::kGauge, "imca_learner_policy_loss"},
-      {"value_loss", "%.6g", 1, "Value loss of the iteration (MADDPG: critic loss).", &R::value_loss, Export::kGauge,
-       "imca_learner_value_loss"},
-      {"entropy", "%.6g", 1, "Mean policy entropy in nats.", &R::entropy, Export::kGauge, "imca_learner_entropy_nats"},
-      {"approx_kl", "%.6g", 1, "Approximate KL divergence of the update.", &R::approx_kl, Export::kGauge,
-       "imca_learner_approx_kl"},
-      {"clip_fraction", "%.4f", 1, "Share of samples whose ratio was clipped.", &R::clip_fraction, Export::kGauge,
-       "imca_learner_clip_fraction_ratio"},
-      {"behaviour_kl", "%.6g", 1, "KL divergence of the behaviour policy from the proximal one.", &R::behaviour_kl,
-       Export::kGauge, "imca_learner_behaviour_kl"},
       {"ms_wait", "%.2f", 1e3, "Milliseconds the iteration waited for unrolls.", &R::wait, Export::kCsvOnly, nullptr},
       {"ms_featurise", "%.2f", 1e3, "Milliseconds of featurising the batch (on the pushing threads).", &R::featurise,
        Export::kCsvOnly, nullptr},
@@ -62,19 +53,55 @@ const std::vector<Column>& IterationColumns() {
        Export::kCsvOnly, nullptr},
       {"train_success_episodes", "%.0f", 1, "Training episodes train_success_rate is over.",
        &R::train_success_episodes, Export::kCsvOnly, nullptr},
-      {"voi_reward", "%.6g", 1, "EDTI's mean value-of-interaction reward (--edti).", &R::voi_reward, Export::kCsvOnly,
-       nullptr},
+      {"entropy", "%.6g", 1, "Mean entropy of the acting policies in nats.", &R::entropy, Export::kGauge,
+       "imca_learner_entropy_nats"},
       {"updates", "%.0f", 1, "Gradient steps of the iteration.", &R::updates, Export::kIncrement,
        "imca_learner_gradient_steps_total"},
-      {"replay_size", "%.0f", 1, "Transitions in the replay buffer (off-policy).", &R::replay_size, Export::kGauge,
-       "imca_learner_replay_transitions"},
+
+      // MAPPO's own (learner/algorithms/mappo/).
+      {"policy_loss", "%.6g", 1, "PPO's clipped surrogate loss of the iteration.", nullptr, Export::kGauge,
+       "imca_learner_policy_loss", "mappo"},
+      {"value_loss", "%.6g", 1, "The critic's squared error of the iteration (summed over its heads).", nullptr,
+       Export::kGauge, "imca_learner_value_loss", "mappo"},
+      {"approx_kl", "%.6g", 1, "Approximate KL divergence of the update.", nullptr, Export::kGauge,
+       "imca_learner_approx_kl", "mappo"},
+      {"clip_fraction", "%.4f", 1, "Share of samples whose ratio was clipped.", nullptr, Export::kGauge,
+       "imca_learner_clip_fraction_ratio", "mappo"},
+      {"behaviour_kl", "%.6g", 1, "KL divergence of the behaviour policy from the proximal one.", nullptr,
+       Export::kGauge, "imca_learner_behaviour_kl", "mappo"},
+      {"voi_reward", "%.6g", 1, "EDTI's mean value-of-interaction reward (--edti).", nullptr, Export::kCsvOnly,
+       nullptr, "mappo"},
+
+      // MADDPG's own (learner/algorithms/maddpg/).
+      {"actor_loss", "%.6g", 1, "The actors' loss, -mean Q_i plus the logit regulariser, mean over the iteration's "
+       "gradient steps.", nullptr, Export::kGauge, "imca_learner_actor_loss", "maddpg"},
+      {"critic_loss", "%.6g", 1, "The critics' squared TD error, mean over the iteration's gradient steps.", nullptr,
+       Export::kGauge, "imca_learner_critic_loss", "maddpg"},
+      {"replay_size", "%.0f", 1, "Transitions in the replay buffer.", nullptr, Export::kGauge,
+       "imca_learner_replay_transitions", "maddpg"},
   };
   return columns;
 }
 
-std::string CsvHeader(int num_agents) {
+std::vector<Column> RunColumns(const std::string& algorithm) {
+  std::vector<Column> run;
+  for (const Column& c : IterationColumns()) {
+    if (c.algorithm == nullptr || algorithm == c.algorithm) run.push_back(c);
+  }
+  return run;
+}
+
+std::vector<std::string> AlgorithmColumnNames(const std::string& algorithm) {
+  std::vector<std::string> names;
+  for (const Column& c : IterationColumns()) {
+    if (c.algorithm != nullptr && algorithm == c.algorithm) names.push_back(c.name);
+  }
+  return names;
+}
+
+std::string CsvHeader(const std::string& algorithm, int num_agents) {
   std::string header;
-  for (const Column& c : IterationColumns()) absl::StrAppend(&header, header.empty() ? "" : ",", c.name);
+  for (const Column& c : RunColumns(algorithm)) absl::StrAppend(&header, header.empty() ? "" : ",", c.name);
   for (int a = 1; a <= num_agents; ++a) absl::StrAppend(&header, ",share_", a);
   return header;
 }
@@ -88,22 +115,31 @@ std::string Cell(const char* format, double value) {
   return cell;
 }
 
+// The value of column `c` in `record` (nan: an own column it lacks).
+double Value(const Column& c, const IterationRecord& record) {
+  if (c.value != nullptr) return record.*c.value;
+  const auto it = record.algorithm.find(c.name);
+  return it != record.algorithm.end() ? it->second : std::numeric_limits<double>::quiet_NaN();
+}
+
 }  // namespace
 
-std::string CsvRow(const IterationRecord& record) {
+std::string CsvRow(const std::string& algorithm, const IterationRecord& record) {
   std::string row;
-  for (const Column& c : IterationColumns()) {
-    absl::StrAppend(&row, row.empty() ? "" : ",", Cell(c.format, record.*c.value * c.scale));
+  for (const Column& c : RunColumns(algorithm)) {
+    absl::StrAppend(&row, row.empty() ? "" : ",", Cell(c.format, Value(c, record) * c.scale));
   }
   for (double p : record.shares) absl::StrAppend(&row, ",", Cell("%.4f", p));
   return row;
 }
 
-IterationExporter::IterationExporter(metrics::Registry* registry)
-    : gauges_(IterationColumns().size()), counters_(IterationColumns().size()), cumulative_(IterationColumns().size()) {
-  const std::vector<Column>& columns = IterationColumns();
-  for (size_t i = 0; i < columns.size(); ++i) {
-    const Column& c = columns[i];
+IterationExporter::IterationExporter(metrics::Registry* registry, const std::string& algorithm)
+    : columns_(RunColumns(algorithm)),
+      gauges_(columns_.size()),
+      counters_(columns_.size()),
+      cumulative_(columns_.size()) {
+  for (size_t i = 0; i < columns_.size(); ++i) {
+    const Column& c = columns_[i];
     switch (c.exported) {
       case Export::kCsvOnly:
         break;
@@ -125,12 +161,14 @@ IterationExporter::IterationExporter(metrics::Registry* registry)
 }
 
 void IterationExporter::Publish(const IterationRecord& record) {
-  const std::vector<Column>& columns = IterationColumns();
-  for (size_t i = 0; i < columns.size(); ++i) {
-    const double v = record.*columns[i].value;
+  for (size_t i = 0; i < columns_.size(); ++i) {
+    // An own column the record lacks (a restored learner's first record)
+    // keeps its value.
+    const double v = Value(columns_[i], record);
+    if (std::isnan(v) && columns_[i].value == nullptr) continue;
     if (gauges_[i] != nullptr) gauges_[i]->Set(v);
     if (counters_[i] != nullptr) counters_[i]->Increment(v);
-    if (columns[i].exported == Export::kCumulative) cumulative_[i].store(v, std::memory_order_relaxed);
+    if (columns_[i].exported == Export::kCumulative) cumulative_[i].store(v, std::memory_order_relaxed);
   }
 }
 

@@ -6,7 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "common/metrics.h"
+#include "absl/container/flat_hash_map.h"
+#include "metrics/metrics.h"
 
 namespace imca::learner {
 
@@ -14,13 +15,14 @@ namespace imca::learner {
 struct IterationRecord {
   double iteration = 0, env_steps = 0, wall_seconds = 0, env_steps_per_sec = 0;
   double success_rate = 0, train_success_rate = 0, episode_return = 0, intrinsic_reward = 0, share_max = 0;
-  double policy_version = 0, policy_lag = 0, dropped_stale = 0;
-  double policy_loss = 0, value_loss = 0, entropy = 0, approx_kl = 0, clip_fraction = 0, behaviour_kl = 0;
+  double policy_version = 0, policy_lag = 0, dropped_stale = 0, entropy = 0;
   // Where the iteration's wall time went, in seconds (docs/benchmarks.md).
   double wait = 0, featurise = 0, values = 0, gae = 0, copy = 0, prepare = 0, forward = 0, backward = 0,
          optimizer = 0, publish = 0;
   double global_reward = 0, contribution_abs = 0, success_episodes = 0, train_success_episodes = 0;
-  double voi_reward = 0, updates = 0, replay_size = 0;
+  double updates = 0;
+  // The algorithm's own columns by name (IterationStats::values).
+  absl::flat_hash_map<std::string, double> algorithm;
   std::vector<double> shares;  // p^a per agent slot: columns share_1 .. share_n.
 };
 
@@ -33,34 +35,48 @@ enum class Export {
 };
 
 // One column of metrics.csv and, unless CSV-only, the Prometheus family it
-// feeds. This table (kIterationColumns, iteration_metrics.cc) is the one
+// feeds. This table (IterationColumns, iteration_metrics.cc) is the one
 // definition of both: the CSV header and rows, the families and their help
-// text, and what `learner --list` tells the Python tools.
+// text, and what `learner --list` tells the Python tools. A column is every
+// algorithm's (`algorithm` null, read from the record's member `value`) or
+// one algorithm's own (`algorithm` its --algo name, read by `name` from the
+// record's `algorithm` values): a run's metrics.csv and families hold the
+// shared columns and its algorithm's.
 struct Column {
   const char* name;    // CSV header.
   const char* format;  // printf format of the value.
   double scale;        // Written as value * scale (seconds as ms).
   const char* help;
-  double IterationRecord::*value;
+  double IterationRecord::*value;  // Null for an algorithm's own column.
   Export exported;
-  const char* family;  // Prometheus name, if exported.
+  const char* family;     // Prometheus name, if exported.
+  const char* algorithm = nullptr;  // --algo name of the one algorithm it belongs to, or null.
 };
+// Every column of every algorithm.
 const std::vector<Column>& IterationColumns();
+// The columns of a run of `algorithm` (an --algo name), in CSV order.
+std::vector<Column> RunColumns(const std::string& algorithm);
+// The names of `algorithm`'s own columns: what its IterationStats::values
+// must hold.
+std::vector<std::string> AlgorithmColumnNames(const std::string& algorithm);
 
-// The CSV header for `num_agents` (the table's columns, then share_1..n).
-std::string CsvHeader(int num_agents);
-// The row of `record` (no newline).
-std::string CsvRow(const IterationRecord& record);
+// The CSV header of a run of `algorithm` with `num_agents` (its columns,
+// then share_1..n).
+std::string CsvHeader(const std::string& algorithm, int num_agents);
+// The row of `record` in a run of `algorithm` (no newline). An own column
+// the record lacks is written as nan.
+std::string CsvRow(const std::string& algorithm, const IterationRecord& record);
 
-// The exported columns as Prometheus families in a registry, set at each
-// iteration. Thread-safe.
+// A run's exported columns as Prometheus families in a registry, set at
+// each iteration. Thread-safe.
 class IterationExporter {
  public:
-  explicit IterationExporter(metrics::Registry* registry);
+  IterationExporter(metrics::Registry* registry, const std::string& algorithm);
   void Publish(const IterationRecord& record);
 
  private:
-  // Per column of the table (null where it does not apply): the gauge or
+  const std::vector<Column> columns_;
+  // Per column of the run (null where it does not apply): the gauge or
   // incremented counter, or the value a cumulative counter's callback reads.
   std::vector<metrics::Gauge*> gauges_;
   std::vector<metrics::Counter*> counters_;

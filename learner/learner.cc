@@ -5,18 +5,18 @@
 #include <filesystem>
 #include <limits>
 
+#include "absl/container/flat_hash_map.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "common/atomic_file.h"
-#include "absl/container/flat_hash_map.h"
-#include "common/enum_names.h"
-#include "common/status_macros.h"
-#include "common/unroll_check.h"
+#include "base/atomic_file.h"
+#include "base/enum_names.h"
+#include "base/status_macros.h"
 #include "learner/algorithms/maddpg/maddpg.h"
 #include "learner/algorithms/mappo/mappo.h"
 #include "learner/lap.h"
 #include "nn/threads.h"
+#include "protocol/unroll_check.h"
 
 namespace imca::learner {
 namespace {
@@ -198,7 +198,7 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std
   RegisterMetrics();
   if (!config_.run_dir.empty()) {
     checkpoints_.emplace((fs::path(config_.run_dir) / "checkpoints").string());
-    metrics_log_.emplace((fs::path(config_.run_dir) / "metrics.csv").string(), CsvHeader(scenario_->num_agents()));
+    metrics_log_.emplace((fs::path(config_.run_dir) / "metrics.csv").string(), CsvHeader(AlgoName(config_.algo), scenario_->num_agents()));
   }
   if (!config_.trained_log.empty()) {
     trained_log_.emplace(config_.trained_log, "iteration,actor_id,incarnation,sequence,policy_version");
@@ -458,7 +458,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   phases_.publish = Lap(lap);
   const IterationRecord record = Record(stats, lag, credit);
   exporter_.Publish(record);
-  if (metrics_log_.has_value()) AppendRow(&*metrics_log_, CsvRow(record));
+  if (metrics_log_.has_value()) AppendRow(&*metrics_log_, CsvRow(AlgoName(config_.algo), record));
   return absl::OkStatus();
 }
 
@@ -525,12 +525,7 @@ IterationRecord Learner::Record(const IterationStats& stats, double lag, const C
   r.policy_version = static_cast<double>(s.policy_version());
   r.policy_lag = lag;
   r.dropped_stale = static_cast<double>(s.unrolls_dropped_stale());
-  r.policy_loss = stats.policy_loss;
-  r.value_loss = stats.value_loss;
   r.entropy = stats.entropy;
-  r.approx_kl = stats.approx_kl;
-  r.clip_fraction = stats.clip_fraction;
-  r.behaviour_kl = stats.behaviour_kl;
   r.wait = phases_.wait;
   r.featurise = phases_.featurise;
   r.values = stats.seconds_values;
@@ -543,9 +538,8 @@ IterationRecord Learner::Record(const IterationStats& stats, double lag, const C
   r.publish = phases_.publish;
   r.global_reward = credit.global_reward;
   r.contribution_abs = credit.contribution_abs;
-  r.voi_reward = stats.voi_reward;
   r.updates = static_cast<double>(stats.updates);
-  r.replay_size = static_cast<double>(stats.replay_size);
+  r.algorithm.insert(stats.values.begin(), stats.values.end());
   r.shares = credit.shares;
   return r;
 }

@@ -15,10 +15,9 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
-#include "common/env.h"
-#include "common/metrics.h"
-#include "common/rng.h"
-#include "common/featurizer.h"
+#include "base/rng.h"
+#include "env/env.h"
+#include "env/featurizer.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 #include "learner/algorithms/interface.h"
@@ -27,6 +26,7 @@
 #include "learner/iteration_metrics.h"
 #include "learner/learner_config.h"
 #include "learner/unroll_queue.h"
+#include "metrics/metrics.h"
 
 namespace imca::learner {
 
@@ -152,7 +152,7 @@ class Learner {
   // Before everything that registers into it; callbacks read the fields
   // below under mu_.
   metrics::Registry registry_;
-  IterationExporter exporter_{&registry_};
+  IterationExporter exporter_{&registry_, AlgoName(config_.algo)};
   metrics::Histogram* policy_lag_ = nullptr;  // Of each trained unroll, in versions.
   // Refused unrolls by reason (v1::Rejection), each series there from the start.
   std::vector<metrics::Counter*> dropped_;

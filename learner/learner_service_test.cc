@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "common/env.h"
-#include "common/test_unrolls.h"
+#include "env/env.h"
 #include "gtest/gtest.h"
+#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {

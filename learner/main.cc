@@ -9,20 +9,19 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
-#include "common/atomic_file.h"
-#include "common/env.h"
-#include "common/grpc_util.h"
-#include "common/json.h"
-#include "common/metrics_flags.h"
-#include "common/scenario_flags.h"
-#include "common/transport_flags.h"
-#include "common/unroll_check.h"
+#include "base/atomic_file.h"
+#include "base/json.h"
+#include "env/env.h"
+#include "env/scenario_flags.h"
+#include "learner/algorithms/mappo/ppo_trainer.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
-#include "learner/algorithms/mappo/ppo_trainer.h"
+#include "protocol/unroll_check.h"
+#include "rpc/grpc_util.h"
+#include "rpc/metrics_flags.h"
+#include "rpc/service_flags.h"
+#include "rpc/transport_flags.h"
 
-ABSL_FLAG(std::string, listen, "127.0.0.1:50052", "host:port to serve on (port 0: any free port)");
-ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
 ABSL_FLAG(std::string, run_dir, "", "run folder for metrics.csv and checkpoints/");
 ABSL_FLAG(std::string, resume, "", "checkpoint directory to resume from");
 ABSL_FLAG(bool, auto_resume, false,
@@ -127,17 +126,6 @@ ABSL_FLAG(double, linger_seconds, 2,
           "after the budget, keep serving this long so that actors in backoff learn it is done");
 ABSL_FLAG(std::string, trained_log, "",
           "if set, append a CSV row per trained unroll (iteration, actor_id, incarnation, sequence, policy_version)");
-ABSL_FLAG(std::string, status_file, "",
-          "if set, write a one-line JSON progress record here every second (for a supervisor)");
-ABSL_FLAG(bool, list, false,
-          "print this binary's choices and limits (scenarios, algorithms, metrics.csv columns, caps) as JSON and "
-          "exit: what the Python tools ask instead of copying them");
-ABSL_FLAG(bool, print_config, false,
-          "resolve the configuration (defaults, the scenario's tuning, the flags given), validate it as a start "
-          "would, print it as JSON (flag name: value) and exit: 0, or 2 with the error");
-ABSL_FLAG(int, signal_exit_code, 0,
-          "exit code when SIGINT/SIGTERM stops training before the budget (Kubernetes Jobs: 143, "
-          "so that an evicted learner is replaced rather than counted as finished)");
 
 namespace {
 
@@ -314,6 +302,7 @@ std::string ListJson() {
                         .Add("name", c.name)
                         .Add("help", c.help)
                         .Raw("prometheus", c.family != nullptr ? JsonString(c.family) : "null")
+                        .Raw("algorithm", c.algorithm != nullptr ? JsonString(c.algorithm) : "null")
                         .Text());
   }
   return JsonObject()
@@ -338,22 +327,7 @@ std::string ListJson() {
 // Writes the learner's status record (--status_file, read by a supervisor)
 // if `path` is set; a failure is reported, not fatal.
 void WriteLearnerStatus(const std::string& path, const imca::learner::Learner& learner) {
-  using namespace imca;
-  if (path.empty()) return;
-  const v1::LearnerStatus s = learner.Status();
-  JsonObject fields;
-  fields.Add("policy_version", s.policy_version())
-      .Add("env_steps", s.env_steps())
-      .Add("unrolls_received", s.unrolls_received())
-      .Add("unrolls_duplicate", s.unrolls_duplicate())
-      .Add("actor_incarnations", s.actor_incarnations())
-      .Add("queue_depth", s.queue_depth())
-      .Add("pushers_waiting", s.pushers_waiting())
-      .Add("seconds_stalled", s.seconds_stalled(), 3)
-      .Add("seconds_training", s.seconds_training(), 3)
-      .Add("batches_dropped", s.batches_dropped())
-      .Add("done", s.done());
-  const absl::Status written = WriteStatusFile(path, std::move(fields));
+  const absl::Status written = imca::WriteStatusFile(path, learner.Status());
   if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
 }
 
@@ -396,22 +370,21 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA learner: multi-agent PPO or MADDPG over gRPC");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
-  if (absl::GetFlag(FLAGS_list)) {
+  const absl::StatusOr<ServiceFlags> service_flags = ServiceFlagsFromFlags();
+  if (!service_flags.ok()) return Fail(std::string(service_flags.status().message()));
+  if (service_flags->list) {
     std::fputs(ListJson().c_str(), stdout);
     return 0;
   }
 
   if (absl::GetFlag(FLAGS_linger_seconds) < 0) return Fail("--linger_seconds must be >= 0");
-  if (const int code = absl::GetFlag(FLAGS_signal_exit_code); code < 0 || code > 255) {
-    return Fail("--signal_exit_code must be in [0, 255]");
-  }
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
 
   absl::StatusOr<learner::LearnerConfig> resolved = ConfigFromFlags((*scenario)->name());
   if (!resolved.ok()) return Fail(std::string(resolved.status().message()));
   learner::LearnerConfig config = *std::move(resolved);
-  if (absl::GetFlag(FLAGS_print_config)) {
+  if (service_flags->print_config) {
     // Validated as a start would be, without a run folder to create.
     learner::LearnerConfig check = config;
     check.run_dir.clear();
@@ -445,15 +418,12 @@ int main(int argc, char** argv) {
   if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;
-  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);
+  auto server = ServeFromFlags("127.0.0.1:50052", {&service}, *server_options, &port);
   if (!server.ok()) return Fail(std::string(server.status().message()));
-  if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
-    std::ofstream(port_file) << port << "\n";
-  }
   std::fprintf(stderr, "learner: serving on port %d (%s)\n", port,
                TransportSummary(server_options->transport, /*server=*/true).c_str());
 
-  const std::string status_file = absl::GetFlag(FLAGS_status_file);
+  const std::string& status_file = service_flags->status_file;
   const absl::Status run = TrainWhileServing(learner->get(), status_file, absl::GetFlag(FLAGS_linger_seconds));
   (*server)->Shutdown(DeadlineIn(std::chrono::seconds(3)));
   WriteLearnerStatus(status_file, **learner);
@@ -462,5 +432,5 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "learner: stopped at %lld env steps, policy version %lld\n",
                static_cast<long long>(status.env_steps()),
                static_cast<long long>(status.policy_version()));
-  return status.done() ? 0 : absl::GetFlag(FLAGS_signal_exit_code);
+  return status.done() ? 0 : service_flags->signal_exit_code;
 }

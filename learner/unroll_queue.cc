@@ -5,8 +5,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
-#include "common/status_macros.h"
-#include "common/unroll_check.h"
+#include "base/status_macros.h"
+#include "protocol/unroll_check.h"
 
 namespace imca::learner {
 UnrollQueue::UnrollQueue(Options options) : options_(std::move(options)) {}

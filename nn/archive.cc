@@ -4,7 +4,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "common/atomic_file.h"
+#include "base/atomic_file.h"
 
 namespace imca::nn {
 

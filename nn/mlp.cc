@@ -5,7 +5,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "common/rng.h"
+#include "base/rng.h"
 
 namespace imca::nn {
 

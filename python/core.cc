@@ -24,9 +24,9 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "common/env.h"
-#include "common/featurizer.h"
-#include "common/vec_env.h"
+#include "env/env.h"
+#include "env/featurizer.h"
+#include "env/vec_env.h"
 #include "envtool/render.h"
 
 namespace py = pybind11;
@@ -117,7 +117,7 @@ std::string IndexText(const char* name, int64_t flat, const std::vector<py::ssiz
   return out + "]";
 }
 
-// The scenario options of every binary (common/scenario_flags.cc), by their
+// The scenario options of every binary (env/scenario_flags.cc), by their
 // Python names.
 struct Options {
   std::string map;

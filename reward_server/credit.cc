@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
-#include "common/enum_names.h"
+#include "base/enum_names.h"
 
 namespace imca::reward {
 

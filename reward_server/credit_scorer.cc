@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <vector>
 
-#include "common/status_macros.h"
+#include "base/status_macros.h"
 
 namespace imca::reward {
 

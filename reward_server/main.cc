@@ -9,18 +9,17 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
-#include "common/atomic_file.h"
-#include "common/env.h"
-#include "common/grpc_util.h"
-#include "common/json.h"
-#include "common/metrics_flags.h"
-#include "common/scenario_flags.h"
-#include "common/transport_flags.h"
+#include "base/atomic_file.h"
+#include "base/json.h"
+#include "env/env.h"
+#include "env/scenario_flags.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
+#include "rpc/grpc_util.h"
+#include "rpc/metrics_flags.h"
+#include "rpc/service_flags.h"
+#include "rpc/transport_flags.h"
 
-ABSL_FLAG(std::string, listen, "127.0.0.1:50051", "host:port to serve on (port 0: any free port)");
-ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
 ABSL_FLAG(std::string, reward, imca::reward::RewardKinds().front(), "reward kind: count|rnd|sf|eiti|edti (--list)");
 namespace {
 // Every default's one definition (with the reward kind's, DefaultScorerConfig).
@@ -61,14 +60,6 @@ ABSL_FLAG(int, max_inflight, kLimits.max_inflight,
           "Score calls served at once; more end with RESOURCE_EXHAUSTED (the actor retries)");
 ABSL_FLAG(int, max_inflight_per_actor, kLimits.max_inflight_per_actor,
           "Score calls of one actor id served at once, so that one flooding client cannot starve the rest");
-ABSL_FLAG(bool, list, false,
-          "print this binary's choices (scenarios, reward kinds with the credit modes each serves, permutation "
-          "modes) as JSON and exit: what the Python tools ask instead of copying them");
-ABSL_FLAG(bool, print_config, false,
-          "resolve the configuration (defaults, the reward kind's, the flags given), validate it as a start "
-          "would, print it as JSON (flag name: value) and exit: 0, or 2 with the error");
-ABSL_FLAG(std::string, status_file, "",
-          "if set, write a one-line JSON progress record here every second (for a supervisor)");
 
 namespace {
 
@@ -137,10 +128,12 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage("IMCA reward server: per-agent credited intrinsic rewards over gRPC");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;
+  const absl::StatusOr<ServiceFlags> service_flags = ServiceFlagsFromFlags();
+  if (!service_flags.ok()) return Fail(std::string(service_flags.status().message()));
 
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return Fail(std::string(scenario.status().message()));
-  if (absl::GetFlag(FLAGS_list)) return List(**scenario);
+  if (service_flags->list) return List(**scenario);
   absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
   if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
 
@@ -169,7 +162,7 @@ int main(int argc, char** argv) {
   auto made = reward::MakeScorer(kind, **scenario, config, kinds);
   if (!made.ok()) return Fail(absl::StrCat("--reward ", kind, ": ", made.status().message()));
   if (absl::GetFlag(FLAGS_snapshot_every) < 0) return Fail("--snapshot_every must be >= 0");
-  if (absl::GetFlag(FLAGS_print_config)) {
+  if (service_flags->print_config) {
     std::printf("%s\n", ConfigJson(kind, config, kinds).c_str());
     return 0;
   }
@@ -200,27 +193,15 @@ int main(int argc, char** argv) {
   if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;
-  auto server = StartServer(absl::GetFlag(FLAGS_listen), {&service}, &port, *server_options);
+  auto server = ServeFromFlags("127.0.0.1:50051", {&service}, *server_options, &port);
   if (!server.ok()) return Fail(std::string(server.status().message()));
-  if (const std::string port_file = absl::GetFlag(FLAGS_port_file); !port_file.empty()) {
-    std::ofstream(port_file) << port << "\n";
-  }
   std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d (%s)\n",
                std::string((*scenario)->name()).c_str(), kind.c_str(), reward::CreditName(config.credit).c_str(), port,
                TransportSummary(server_options->transport, /*server=*/true).c_str());
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));
-  const std::string status_file = absl::GetFlag(FLAGS_status_file);
   auto write_status = [&] {
-    if (status_file.empty()) return;
-    const v1::RewardStats stats = service.Stats();
-    JsonObject fields;
-    fields.Add("transitions_scored", stats.transitions_scored())
-        .Add("requests_served", stats.requests_served())
-        .Add("requests_rejected", stats.requests_rejected())
-        .Add("distinct_keys", stats.distinct_keys())
-        .Add("distinct_local_keys", stats.distinct_local_keys());
-    const absl::Status written = WriteStatusFile(status_file, std::move(fields));
+    const absl::Status written = WriteStatusFile(service_flags->status_file, service.Stats());
     if (!written.ok()) std::fprintf(stderr, "reward_server: status: %s\n", std::string(written.message()).c_str());
   };
   auto last_snapshot = std::chrono::steady_clock::now();
@@ -248,5 +229,5 @@ int main(int argc, char** argv) {
   }
   write_status();
   std::fprintf(stderr, "reward_server: stopped\n");
-  return 0;
+  return service_flags->signal_exit_code;
 }

@@ -6,10 +6,10 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "common/env.h"
+#include "env/env.h"
 #include "reward_server/credit.h"
-#include "reward_server/novelty/influence_novelty.h"
 #include "reward_server/credit_scorer.h"
+#include "reward_server/novelty/influence_novelty.h"
 #include "reward_server/novelty/novelty.h"
 #include "reward_server/novelty/rnd_novelty.h"
 #include "reward_server/novelty/sf_novelty.h"

@@ -7,9 +7,9 @@
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
-#include "common/grpc_util.h"
-#include "common/transport.h"
-#include "common/unroll_check.h"
+#include "protocol/unroll_check.h"
+#include "rpc/grpc_util.h"
+#include "rpc/transport.h"
 
 namespace imca::reward {
 

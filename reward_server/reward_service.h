@@ -9,12 +9,12 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/container/flat_hash_map.h"
 #include "absl/synchronization/mutex.h"
-#include "common/admission.h"
-#include "common/env.h"
-#include "common/metrics.h"
+#include "env/env.h"
 #include "imca/v1/reward_service.grpc.pb.h"
+#include "metrics/metrics.h"
 #include "reward_server/credit.h"
 #include "reward_server/scorer.h"
+#include "rpc/admission.h"
 
 namespace imca::reward {
 

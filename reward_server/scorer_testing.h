@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
+#include "env/env.h"
 #include "gtest/gtest.h"
 #include "imca/v1/unroll.pb.h"
-#include "common/env.h"
-#include "reward_server/novelty/count_novelty.h"
 #include "reward_server/credit_scorer.h"
+#include "reward_server/novelty/count_novelty.h"
 #include "reward_server/novelty/novelty.h"
 #include "reward_server/scorer.h"
 

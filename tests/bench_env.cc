@@ -12,10 +12,10 @@
 #include <memory>
 #include <vector>
 
-#include "common/env.h"
-#include "common/featurizer.h"
-#include "common/rng.h"
-#include "common/vec_env.h"
+#include "base/rng.h"
+#include "env/env.h"
+#include "env/featurizer.h"
+#include "env/vec_env.h"
 
 namespace imca {
 namespace {

@@ -14,11 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "common/env.h"
-#include "common/grpc_util.h"
-#include "common/test_unrolls.h"
+#include "env/env.h"
+#include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
+#include "rpc/grpc_util.h"
 
 namespace imca {
 namespace {

@@ -22,14 +22,14 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "actor/actor.h"
-#include "common/env.h"
-#include "common/grpc_util.h"
-#include "common/rng.h"
-#include "common/test_unrolls.h"
-#include "common/vec_env.h"
+#include "base/rng.h"
+#include "env/env.h"
+#include "env/vec_env.h"
 #include "learner/learner.h"
+#include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
+#include "rpc/grpc_util.h"
 
 namespace imca {
 namespace {

@@ -22,7 +22,7 @@ from imca_tools import binaries, options, plan
 # Flags that say where a process runs and how it is wired or supervised, not
 # what it trains: a deployment sets them for itself.
 WIRING = {
-    "reward_server": {"listen", "port_file", "snapshot", "status_file", "journal_fsync", "max_inflight",
+    "reward_server": {"listen", "port_file", "snapshot", "status_file", "signal_exit_code", "journal_fsync", "max_inflight",
                       "max_inflight_per_actor", "max_receive_mb"},
     "learner": {"listen", "port_file", "run_dir", "resume", "auto_resume", "trained_log", "status_file",
                 "signal_exit_code", "linger_seconds", "max_streams", "max_receive_mb"},

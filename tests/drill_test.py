@@ -17,6 +17,7 @@ import unittest
 
 from imca_tools import binaries
 from imca_tools.supervisor import run_processes  # a run's live processes by name
+from imca_tools.runs import read_status
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 LAUNCH = binaries.module_argv("train")
@@ -68,7 +69,7 @@ class Drill:
         return self.proc.returncode
 
     def status(self, name):
-        return read_json(os.path.join(self.logs, name + ".status.json"))
+        return read_status(os.path.join(self.logs, name + ".status.json"))
 
     def trained(self):
         return rows(os.path.join(self.logs, "trained_unrolls.csv"))
@@ -123,7 +124,7 @@ class DrillTest(unittest.TestCase):
             # data stopped where it died.
             incarnations = {r["incarnation"] for r in drill.trained() if r["actor_id"] == "actor-1"}
             self.assertEqual(len(incarnations), 2)
-            self.assertIn(drill.status("actor-1")["incarnation"], incarnations)
+            self.assertIn(f'{drill.status("actor-1")["incarnation"]:016x}', incarnations)
             self.assertEqual(drill.status("learner")["actor_incarnations"], 3)
 
     def test_learner_killed(self):

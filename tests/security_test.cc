@@ -18,19 +18,19 @@
 
 #include "absl/synchronization/mutex.h"
 #include "actor/actor.h"
-#include "common/env.h"
-#include "common/grpc_util.h"
-#include "common/test_unrolls.h"
-#include "common/transport.h"
+#include "env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "imca/v1/reward_service.grpc.pb.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
+#include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 #include "reward_server/scorer_testing.h"
+#include "rpc/grpc_util.h"
+#include "rpc/transport.h"
 
 namespace imca {
 namespace {

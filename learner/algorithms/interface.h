@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -29,26 +30,20 @@ struct FeaturisedUnroll {
   double featurise_seconds = 0;
 };
 
-// What one iteration did: the metrics row's algorithm columns
-// (learner/iteration_metrics.h). Each algorithm fills what it has a notion
-// of, in its own meaning; the rest stays 0.
+// What one iteration did. The fields below are every algorithm's (in its
+// own sense, documented by each); `values` holds the algorithm's own
+// columns of metrics.csv by name, exactly those the metrics table lists for
+// it (AlgorithmColumnNames, learner/iteration_metrics.h): MAPPO's losses, KLs
+// and clip share, MADDPG's actor and critic losses and replay size.
 struct IterationStats {
-  // MAPPO: the clipped surrogate; MADDPG: -mean Q_i (+ the logit regulariser).
-  double policy_loss = 0;
-  // MAPPO: the critic's squared error (per head, summed); MADDPG: the TD error^2.
-  double value_loss = 0;
-  double entropy = 0;  // Of the acting policies.
-  // PPO's only: the KL and clip share against the policy the clip is
-  // measured against, and how stale the batch was (PpoStats).
-  double approx_kl = 0, clip_fraction = 0, behaviour_kl = 0;
+  std::vector<std::pair<std::string, double>> values;
+  double entropy = 0;    // Of the acting policies, nats.
   double grad_norm = 0;  // Before clipping, mean over gradient steps.
   // Gradient steps not taken because their loss or gradient was not finite,
   // and why the first of them failed.
   int64_t minibatches_skipped = 0;
   std::string skip_reason;
-  int64_t updates = 0;       // Gradient steps taken (PPO: minibatch steps).
-  int64_t replay_size = 0;   // Transitions held (off-policy only).
-  double voi_reward = 0;     // EDTI's value-of-interaction reward (MAPPO --edti).
+  int64_t updates = 0;  // Gradient steps taken (PPO: minibatch steps).
   // Wall seconds of adding the iteration's unrolls: values, GAE and copying
   // for PPO; MADDPG's inserting counts as copy (its due updates as Train's
   // forward, backward and optimizer phases).

@@ -4,22 +4,28 @@
     probs = policy(obs)          # obs [..., n, D] (or [..., D] if shared) -> [..., A]
     actions = policy.sample(obs, rng)
 
-Every architecture the learner exports (proto/imca/v1/learner_service.proto):
-"mlp_tanh" and "mlp_tanh_layernorm" (MAPPO, shared), "mlp_relu" (MADDPG,
-shared or one network per agent). The forward pass is the C++ evaluator's
-(common/policy_mlp.cc) in float32: probabilities agree to 1e-6.
+Every architecture the learner exports (proto/imca/v1/learner_service.proto's
+Policy.Architecture, named here in lower case): "mlp_tanh" and
+"mlp_tanh_layernorm" (MAPPO, shared), "mlp_relu" (MADDPG, shared or one
+network per agent). The forward pass is the C++ evaluator's
+(protocol/policy_mlp.cc) in float32: probabilities agree to 1e-6.
 """
 import os
 
 import numpy as np
 
-ARCHITECTURES = ("mlp_tanh", "mlp_tanh_layernorm", "mlp_relu")
 LAYER_NORM_EPS = np.float32(1e-5)  # LibTorch's default, as the learner and the C++ evaluator.
 
 
 def _v1():
     from .v1 import learner_service_pb2
     return learner_service_pb2
+
+
+def architectures():
+    """The architectures a policy can have, by name ("mlp_tanh", ...): the
+    proto's enum values but the unspecified one, in lower case."""
+    return tuple(name.lower() for name, number in _v1().Policy.Architecture.items() if number != 0)
 
 
 class _Net:
@@ -93,15 +99,18 @@ class Policy:
     """
 
     def __init__(self, proto):
-        if proto.architecture not in ARCHITECTURES:
-            raise ValueError(f"policy.architecture {proto.architecture!r} is not one of {', '.join(ARCHITECTURES)}")
+        enum = _v1().Policy.Architecture
+        architecture = enum.Name(proto.architecture).lower() if proto.architecture in enum.values() else None
+        if architecture not in architectures():
+            raise ValueError(f"policy.architecture {proto.architecture} ({architecture or 'unknown'}) is not one of "
+                             f"{', '.join(architectures())}")
         if proto.obs_dim < 1 or proto.num_actions < 1:
             raise ValueError(f"policy: obs_dim {proto.obs_dim} and num_actions {proto.num_actions} must be >= 1")
         if not 0 <= proto.agent_networks <= 1024:
             raise ValueError(f"policy.agent_networks is {proto.agent_networks}, expected 0 (shared) or 1..1024")
         self._proto = proto
         self.version = proto.version
-        self.architecture = proto.architecture
+        self.architecture = architecture
         self.obs_dim = proto.obs_dim
         self.num_actions = proto.num_actions
         self.agent_networks = proto.agent_networks
@@ -113,8 +122,8 @@ class Policy:
                 raise ValueError(f"policy: tensor {t.name!r} has {data.size} values for shape {list(t.shape)}")
             tensors[t.name] = data.reshape(tuple(t.shape))
         self.tensors = tensors
-        layer_norm = proto.architecture == "mlp_tanh_layernorm"
-        self._relu = proto.architecture == "mlp_relu"
+        layer_norm = architecture == "mlp_tanh_layernorm"
+        self._relu = architecture == "mlp_relu"
         prefixes = (["policy."] if self.agent_networks == 0
                     else [f"agent{k}.policy." for k in range(self.agent_networks)])
         self._nets = [_Net(tensors, p, self.obs_dim, self.num_actions, layer_norm) for p in prefixes]

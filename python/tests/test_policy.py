@@ -14,8 +14,8 @@ SCENARIO = "coop_nav"
 def synthetic(architecture, obs_dim, num_actions, agent_networks, seed, hidden=(32, 24), scale=1.5):
     """A Policy proto in the documented layout with bold random weights."""
     rng = np.random.default_rng(seed)
-    proto = pb.Policy(version=7, architecture=architecture, obs_dim=obs_dim, num_actions=num_actions,
-                      agent_networks=agent_networks)
+    proto = pb.Policy(version=7, architecture=pb.Policy.Architecture.Value(architecture.upper()), obs_dim=obs_dim,
+                      num_actions=num_actions, agent_networks=agent_networks)
 
     def add(name, array):
         proto.tensors.add(name=name, shape=list(array.shape), data=array.astype(np.float32).ravel().tolist())
@@ -113,8 +113,9 @@ def test_bad_policy_files(tmp_path):
     with pytest.raises(ValueError, match="not a serialized imca.v1.Policy"):
         imca.load_policy(junk)
     proto = synthetic("mlp_tanh", 10, 5, 0, seed=1)
-    proto.architecture = "transformer"
-    with pytest.raises(ValueError, match="policy.architecture 'transformer'"):
+    proto.architecture = 0  # ARCHITECTURE_UNSPECIFIED: e.g. a policy.pb from before the enum.
+    with pytest.raises(ValueError, match=r"policy.architecture 0 \(architecture_unspecified\) is not one of "
+                                         "mlp_tanh, mlp_tanh_layernorm, mlp_relu"):
         imca.policy_from_bytes(proto.SerializeToString())
     proto = synthetic("mlp_tanh", 10, 5, 0, seed=1)
     del proto.tensors[1]

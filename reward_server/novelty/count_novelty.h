@@ -4,10 +4,10 @@
 #include <string>
 #include <vector>
 
-#include "common/env.h"
-#include "common/rng.h"
-#include "reward_server/novelty/counted_novelty.h"
+#include "base/rng.h"
+#include "env/env.h"
 #include "reward_server/credit.h"
+#include "reward_server/novelty/counted_novelty.h"
 #include "reward_server/novelty/joint_key.h"
 #include "reward_server/novelty/novelty.h"
 

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-#include "common/status_macros.h"
+#include "base/status_macros.h"
 
 namespace imca::reward {
 namespace {

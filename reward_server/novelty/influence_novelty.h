@@ -3,9 +3,9 @@
 
 #include <string>
 
-#include "common/env.h"
-#include "reward_server/novelty/counted_novelty.h"
+#include "env/env.h"
 #include "reward_server/credit.h"
+#include "reward_server/novelty/counted_novelty.h"
 #include "reward_server/novelty/novelty.h"
 
 namespace imca::reward {

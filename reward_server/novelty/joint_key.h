@@ -3,7 +3,7 @@
 
 #include <cstdint>
 
-#include "common/env.h"
+#include "env/env.h"
 
 namespace imca::reward {
 

@@ -4,8 +4,8 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "common/atomic_file.h"
-#include "common/status_macros.h"
+#include "base/atomic_file.h"
+#include "base/status_macros.h"
 
 namespace imca::reward {
 namespace {

@@ -8,8 +8,8 @@
 #include <string>
 
 #include "absl/status/status.h"
-#include "imca/v1/reward_service.pb.h"
 #include "absl/status/statusor.h"
+#include "imca/v1/reward_service.pb.h"
 #include "reward_server/credit.h"
 #include "reward_server/scorer.h"
 

@@ -6,14 +6,14 @@
 #include <optional>
 
 #include "absl/strings/str_cat.h"
-#include "common/rng.h"
-#include "common/status_macros.h"
-#include "reward_server/novelty/joint_input.h"
-#include "reward_server/novelty/joint_key.h"
+#include "base/rng.h"
+#include "base/status_macros.h"
 #include "nn/archive.h"
 #include "nn/mlp.h"
 #include "nn/running_moments.h"
 #include "nn/torch_status.h"
+#include "reward_server/novelty/joint_input.h"
+#include "reward_server/novelty/joint_key.h"
 
 namespace imca::reward {
 namespace {

@@ -1,7 +1,7 @@
 // RND novelty with credit assignment (paper eq. 6, 9-10), on tiny networks
 // whose weights the test sets, and the learned-model properties.
-#include "reward_server/novelty/rnd_novelty.h"
 #include "reward_server/make_scorer.h"
+#include "reward_server/novelty/rnd_novelty.h"
 
 #include "reward_server/scorer_testing.h"
 
@@ -10,10 +10,10 @@
 #include <memory>
 #include <vector>
 
-#include "common/env.h"
-#include "common/test_unrolls.h"
+#include "env/env.h"
 #include "gtest/gtest.h"
 #include "nn/threads.h"
+#include "protocol/test_unrolls.h"
 
 namespace imca::reward {
 namespace {

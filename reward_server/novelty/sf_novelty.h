@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "common/env.h"
+#include "env/env.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty/learned_novelty.h"
 

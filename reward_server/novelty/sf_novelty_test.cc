@@ -1,6 +1,6 @@
 // Successor-feature control with credit assignment (paper eq. 7, 11-13).
-#include "reward_server/novelty/sf_novelty.h"
 #include "reward_server/make_scorer.h"
+#include "reward_server/novelty/sf_novelty.h"
 
 #include "reward_server/scorer_testing.h"
 
@@ -9,10 +9,10 @@
 #include <memory>
 #include <vector>
 
-#include "common/env.h"
-#include "common/test_unrolls.h"
+#include "env/env.h"
 #include "gtest/gtest.h"
 #include "nn/threads.h"
+#include "protocol/test_unrolls.h"
 
 namespace imca::reward {
 namespace {

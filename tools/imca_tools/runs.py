@@ -6,6 +6,7 @@ complete), steps to a success rate.
 import csv
 import json
 import os
+import re
 
 from . import binaries
 
@@ -24,6 +25,21 @@ def read_json(path):
             return json.load(f)
     except (OSError, ValueError):
         return None
+
+
+_INT64 = re.compile(r"-?[0-9]+")
+
+
+def read_status(path):
+    """A binary's --status_file record, or None if there is none yet:
+    protobuf's JSON mapping of its proto (LearnerStatus, RewardStats,
+    ActorStatus; rpc/service_flags.h) plus "time", Unix seconds. The mapping
+    quotes 64-bit integers; here they are ints again (every quoted integer is
+    one: the records' strings are names and states)."""
+    record = read_json(path)
+    if not isinstance(record, dict):
+        return None
+    return {k: int(v) if isinstance(v, str) and _INT64.fullmatch(v) else v for k, v in record.items()}
 
 
 def read_config(run_dir):
@@ -128,7 +144,7 @@ def write_summary(run_dir, config, rows, interrupted):
 
 
 def write_json_atomically(path, value):
-    """A file a crash leaves old or new, never half (as common/atomic_file.h)."""
+    """A file a crash leaves old or new, never half (as base/atomic_file.h)."""
     with open(path + ".tmp", "w") as f:
         json.dump(value, f, indent=2)
         f.flush()

@@ -10,12 +10,13 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
-#include "common/featurizer.h"
-#include "common/status_macros.h"
+#include "base/status_macros.h"
+#include "env/featurizer.h"
 #include "learner/algorithms/maddpg/maddpg_internal.h"
 #include "learner/lap.h"
 #include "nn/archive.h"
 #include "nn/mlp.h"
+#include "nn/policy_export.h"
 #include "nn/torch_status.h"
 
 namespace imca::learner {
@@ -306,8 +307,8 @@ struct Maddpg::Impl {
     }
     torch::NoGradGuard no_grad;
     const torch::Tensor log_p = torch::log_softmax(logits.detach(), -1);
-    sums.policy_loss += actor_loss.item<double>();
-    sums.value_loss += critic_loss.item<double>();
+    actor_loss_sum += actor_loss.item<double>();
+    critic_loss_sum += critic_loss.item<double>();
     sums.entropy += -(log_p.exp() * log_p).sum(-1).mean().item<double>();
     sums.grad_norm += grad / 2;
     ++sums.updates;
@@ -334,6 +335,7 @@ struct Maddpg::Impl {
   // The current iteration's sums and timings (Train turns the losses,
   // entropy and grad norm into means).
   IterationStats sums;
+  double actor_loss_sum = 0, critic_loss_sum = 0;  // Over the iteration's gradient steps.
 };
 
 absl::StatusOr<std::unique_ptr<Maddpg>> Maddpg::Create(const env::Scenario* scenario, const LearnerConfig& config) {
@@ -412,44 +414,21 @@ absl::StatusOr<IterationStats> Maddpg::Train() {
   Impl& s = *impl_;
   IterationStats stats = s.sums;
   const double u = std::max<int64_t>(stats.updates, 1);
-  stats.policy_loss /= u;
-  stats.value_loss /= u;
+  stats.values = {{"actor_loss", s.actor_loss_sum / u},
+                  {"critic_loss", s.critic_loss_sum / u},
+                  {"replay_size", static_cast<double>(s.size)}};
   stats.entropy /= u;
   stats.grad_norm /= u;
-  stats.replay_size = s.size;
   s.sums = IterationStats();
+  s.actor_loss_sum = s.critic_loss_sum = 0;
   return stats;
 }
 
-namespace {
-
-void AddTensor(const std::string& name, const torch::Tensor& t, v1::Policy* policy) {
-  const torch::Tensor c = t.detach().to(torch::kFloat32).contiguous();
-  v1::NamedTensor* out = policy->add_tensors();
-  out->set_name(name);
-  for (int64_t d : c.sizes()) out->add_shape(d);
-  out->mutable_data()->Add(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
-}
-
-}  // namespace
-
 v1::Policy Maddpg::ExportPolicy(int64_t version) const {
   const Impl& s = *impl_;
-  v1::Policy policy;
-  policy.set_version(version);
-  policy.set_architecture("mlp_relu");
-  policy.set_obs_dim(s.D);
-  policy.set_num_actions(s.A);
-  if (!s.m.share_parameters) policy.set_agent_networks(s.n);
-  for (int i = 0; i < s.networks(); ++i) {
-    const std::string prefix = s.m.share_parameters ? "policy." : absl::StrCat("agent", i, ".policy.");
-    const auto& layers = s.nets.actors[i]->layers();
-    for (size_t l = 0; l < layers.size(); ++l) {
-      AddTensor(absl::StrCat(prefix, l, ".weight"), layers[l]->weight, &policy);
-      AddTensor(absl::StrCat(prefix, l, ".bias"), layers[l]->bias, &policy);
-    }
-  }
-  return policy;
+  std::vector<const nn::MlpImpl*> actors;
+  for (int i = 0; i < s.networks(); ++i) actors.push_back(s.nets.actors[i].get());
+  return nn::ExportPolicy(v1::Policy::MLP_RELU, version, s.D, s.A, actors, /*per_agent=*/!s.m.share_parameters);
 }
 
 // The archive: "dims" int64 [n, obs_dim, num_actions, hidden, shared],

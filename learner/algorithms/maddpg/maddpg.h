@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "common/env.h"
+#include "env/env.h"
 #include "learner/algorithms/interface.h"
 #include "learner/learner_config.h"
 

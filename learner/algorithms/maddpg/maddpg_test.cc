@@ -5,13 +5,14 @@
 #include <filesystem>
 #include <map>
 
-#include "common/env.h"
-#include "common/rng.h"
-#include "common/test_unrolls.h"
+#include "base/rng.h"
+#include "env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/maddpg/maddpg_internal.h"
+#include "learner/iteration_metrics.h"
 #include "learner/learner.h"
+#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {
@@ -187,8 +188,14 @@ TEST_F(MaddpgTest, AddTakesExactlyTheUpdatesTheRatioAllows) {
   absl::StatusOr<IterationStats> stats = maddpg->Train();
   ASSERT_TRUE(stats.ok());
   EXPECT_EQ(stats->updates, 7);
-  EXPECT_EQ(stats->replay_size, 256);
-  EXPECT_TRUE(std::isfinite(stats->value_loss));
+  // Its own columns by name, each of them (learner/iteration_metrics.h).
+  std::vector<std::string> names;
+  for (const auto& [name, value] : stats->values) {
+    names.push_back(name);
+    EXPECT_TRUE(std::isfinite(value)) << name;
+  }
+  EXPECT_EQ(names, AlgorithmColumnNames("maddpg"));
+  EXPECT_EQ(stats->values.back().second, 256);  // replay_size.
   EXPECT_GT(stats->entropy, 0.0);
 }
 
@@ -224,7 +231,7 @@ TEST_F(MaddpgTest, LearnerTrainsMaddpgAndPublishesReluPolicies) {
   std::filesystem::remove_all(config.run_dir);
   auto learner = Learner::Create(scenario_.get(), config);
   ASSERT_TRUE(learner.ok()) << learner.status();
-  EXPECT_EQ((*learner)->CurrentPolicy()->architecture(), "mlp_relu");
+  EXPECT_EQ((*learner)->CurrentPolicy()->architecture(), v1::Policy::MLP_RELU);
   std::thread pusher([&] {
     for (int i = 0; i < 8; ++i) {
       v1::Unroll u = testing::RandomUnroll(*scenario_, 16, 8, 10 + i);
@@ -241,8 +248,9 @@ TEST_F(MaddpgTest, LearnerTrainsMaddpgAndPublishesReluPolicies) {
   std::string header, row, last;
   std::getline(metrics, header);
   while (std::getline(metrics, row)) last = row;
-  EXPECT_THAT(header, HasSubstr("updates,replay_size"));
+  EXPECT_THAT(header, HasSubstr("updates,actor_loss,critic_loss,replay_size"));
   EXPECT_THAT(last, HasSubstr(",1024,"));
+  EXPECT_THAT(last, ::testing::Not(HasSubstr("nan")));
   // A restarted learner resumes MADDPG from the final checkpoint: same
   // version, steps and published policy (its replay refills).
   auto restarted = Learner::Create(scenario_.get(), config);

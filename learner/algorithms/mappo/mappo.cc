@@ -4,7 +4,7 @@
 #include <memory>
 
 #include "absl/strings/str_cat.h"
-#include "common/status_macros.h"
+#include "base/status_macros.h"
 #include "learner/algorithms/mappo/gae.h"
 #include "learner/lap.h"
 
@@ -189,7 +189,7 @@ absl::Status Mappo::Add(const FeaturisedUnroll& q) {
 
 absl::StatusOr<IterationStats> Mappo::Train() {
   IterationStats stats = adding_;
-  stats.voi_reward = voi_count_ > 0 ? voi_sum_ / voi_count_ : 0.0;
+  const double voi_reward = voi_count_ > 0 ? voi_sum_ / voi_count_ : 0.0;
   adding_ = IterationStats();
   voi_sum_ = 0;
   voi_count_ = 0;
@@ -197,12 +197,10 @@ absl::StatusOr<IterationStats> Mappo::Train() {
   batch_.Clear();
   if (!trained.ok()) return trained.status();
   const PpoStats& ppo = *trained;
-  stats.policy_loss = ppo.policy_loss;
-  stats.value_loss = ppo.value_loss;
+  stats.values = {{"policy_loss", ppo.policy_loss}, {"value_loss", ppo.value_loss},
+                  {"approx_kl", ppo.approx_kl},     {"clip_fraction", ppo.clip_fraction},
+                  {"behaviour_kl", ppo.behaviour_kl}, {"voi_reward", voi_reward}};
   stats.entropy = ppo.entropy;
-  stats.approx_kl = ppo.approx_kl;
-  stats.clip_fraction = ppo.clip_fraction;
-  stats.behaviour_kl = ppo.behaviour_kl;
   stats.grad_norm = ppo.grad_norm;
   stats.seconds_prepare = ppo.seconds_prepare;
   stats.seconds_forward = ppo.seconds_forward;

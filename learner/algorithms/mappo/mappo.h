@@ -5,11 +5,11 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "common/env.h"
-#include "common/featurizer.h"
+#include "env/env.h"
+#include "env/featurizer.h"
 #include "learner/algorithms/interface.h"
-#include "learner/learner_config.h"
 #include "learner/algorithms/mappo/ppo_trainer.h"
+#include "learner/learner_config.h"
 
 namespace imca::learner {
 

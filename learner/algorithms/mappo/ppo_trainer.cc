@@ -19,11 +19,12 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/synchronization/mutex.h"
-#include "common/atomic_file.h"
-#include "common/enum_names.h"
-#include "common/status_macros.h"
+#include "base/atomic_file.h"
+#include "base/enum_names.h"
+#include "base/status_macros.h"
 #include "learner/lap.h"
 #include "nn/mlp.h"
+#include "nn/policy_export.h"
 #include "nn/running_moments.h"
 
 namespace imca::learner {
@@ -223,15 +224,6 @@ absl::Status CheckFinite(const char* field, const std::vector<float>& v) {
     }
   }
   return absl::OkStatus();
-}
-
-void AddTensor(const std::string& name, const torch::Tensor& tensor, v1::Policy& policy) {
-  const torch::Tensor t = tensor.detach().to(torch::kFloat32).contiguous();
-  v1::NamedTensor* out = policy.add_tensors();
-  out->set_name(name);
-  for (int64_t d : t.sizes()) out->add_shape(d);
-  const float* data = t.data_ptr<float>();
-  out->mutable_data()->Add(data, data + t.numel());
 }
 
 // Parameters of `loaded` must have the shapes of `expected` (Module::load
@@ -799,27 +791,8 @@ absl::StatusOr<PpoStats> PpoTrainer::Train(const PpoBatch& batch) {
 }
 
 v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
-  v1::Policy policy;
-  policy.set_version(version);
-  const bool layer_norm = impl_->config_.layer_norm;
-  policy.set_architecture(layer_norm ? "mlp_tanh_layernorm" : "mlp_tanh");
-  policy.set_obs_dim(impl_->obs_dim_);
-  policy.set_num_actions(impl_->num_actions_);
-  const nn::Mlp& actor = impl_->model_.actor;
-  if (layer_norm) {
-    AddTensor("policy.input_norm.weight", actor->input_norm()->weight, policy);
-    AddTensor("policy.input_norm.bias", actor->input_norm()->bias, policy);
-  }
-  const auto& layers = actor->layers();
-  for (size_t i = 0; i < layers.size(); ++i) {
-    AddTensor(absl::StrCat("policy.", i, ".weight"), layers[i]->weight, policy);
-    AddTensor(absl::StrCat("policy.", i, ".bias"), layers[i]->bias, policy);
-    if (layer_norm && i < actor->norms().size()) {
-      AddTensor(absl::StrCat("policy.", i, ".norm.weight"), actor->norms()[i]->weight, policy);
-      AddTensor(absl::StrCat("policy.", i, ".norm.bias"), actor->norms()[i]->bias, policy);
-    }
-  }
-  return policy;
+  return nn::ExportPolicy(impl_->config_.layer_norm ? v1::Policy::MLP_TANH_LAYERNORM : v1::Policy::MLP_TANH, version,
+                          impl_->obs_dim_, impl_->num_actions_, {impl_->model_.actor.get()}, /*per_agent=*/false);
 }
 
 absl::Status PpoTrainer::Save(const std::string& path) const {

@@ -13,9 +13,9 @@
 
 #include <torch/torch.h>
 
-#include "common/policy_mlp.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "protocol/policy_mlp.h"
 
 namespace imca::learner {
 
@@ -74,13 +74,13 @@ void LayerNorm(const std::map<std::string, const v1::NamedTensor*>& by_name,
   }
 }
 
-// An independent evaluator of an exported "mlp_tanh" or
-// "mlp_tanh_layernorm" policy: tanh (and LayerNorm) after every layer but
+// An independent evaluator of an exported MLP_TANH or
+// MLP_TANH_LAYERNORM policy: tanh (and LayerNorm) after every layer but
 // the last, softmax on the last. Double precision.
 std::vector<double> Probabilities(const v1::Policy& policy, const std::vector<float>& obs) {
   std::map<std::string, const v1::NamedTensor*> by_name;
   for (const v1::NamedTensor& t : policy.tensors()) by_name[t.name()] = &t;
-  const bool layer_norm = policy.architecture() == "mlp_tanh_layernorm";
+  const bool layer_norm = policy.architecture() == v1::Policy::MLP_TANH_LAYERNORM;
   std::vector<double> x(obs.begin(), obs.end());
   if (layer_norm) LayerNorm(by_name, "policy.input_norm", x);
   int layers = 0;
@@ -203,7 +203,7 @@ TEST(PpoTrainerTest, ExportPolicyHasNamesShapesAndInit) {
   EXPECT_EQ(trainer->num_actions(), 4);
   const v1::Policy policy = trainer->ExportPolicy(42);
   EXPECT_EQ(policy.version(), 42);
-  EXPECT_EQ(policy.architecture(), "mlp_tanh");
+  EXPECT_EQ(policy.architecture(), v1::Policy::MLP_TANH);
   EXPECT_EQ(policy.obs_dim(), 3);
   EXPECT_EQ(policy.num_actions(), 4);
   const std::vector<std::pair<std::string, std::vector<int64_t>>> expected = {
@@ -578,7 +578,7 @@ TEST_P(PpoVariantTest, LearnsTheBanditAndTheValues) {
     EXPECT_TRUE(std::isfinite(result->policy_loss) && std::isfinite(result->value_loss));
   }
   const v1::Policy policy = trainer->ExportPolicy(1);
-  EXPECT_EQ(policy.architecture(), config.layer_norm ? "mlp_tanh_layernorm" : "mlp_tanh");
+  EXPECT_EQ(policy.architecture(), config.layer_norm ? v1::Policy::MLP_TANH_LAYERNORM : v1::Policy::MLP_TANH);
   for (int context = 0; context < kContexts; ++context) {
     const std::vector<double> p = Probabilities(policy, OneHot(context));
     EXPECT_GT(p[kRightAction[context]], 0.9) << "context " << context;
