@@ -22,8 +22,8 @@
 #include "rpc/transport.h"
 #include "rpc/transport_flags.h"
 
-ABSL_FLAG(std::string, learner, "127.0.0.1:50052", "learner address host:port");
-ABSL_FLAG(std::string, reward_server, "127.0.0.1:50051", "reward server address host:port");
+ABSL_FLAG(std::string, learner, imca::kDefaultLearnerAddress, "learner address host:port");
+ABSL_FLAG(std::string, reward_server, imca::kDefaultRewardServerAddress, "reward server address host:port");
 namespace {
 const imca::actor::ActorConfig kDefaults;  // Every default's one definition (with the scenario's tuning).
 }  // namespace

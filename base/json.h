@@ -34,8 +34,6 @@ inline std::string JsonStrings(const std::vector<std::string>& items) {
   return out + "]";
 }
 
-// Builds one JSON object, keys in the order added: what the binaries write
-// as status files and print for --list. Not thread-safe.
 // The shortest decimal that parses back to `value` (finite values): whole
 // numbers as integers, others by the fewest %g digits that round-trip (as a
 // float, for a float).
@@ -51,6 +49,8 @@ std::string ExactNumber(T value) {
   return absl::StrFormat("%.17g", static_cast<double>(value));
 }
 
+// Builds one JSON object, keys in the order added: what the binaries print
+// for --list and --print_config. Not thread-safe.
 class JsonObject {
  public:
   JsonObject& Add(absl::string_view key, absl::string_view value) { return Raw(key, JsonString(value)); }

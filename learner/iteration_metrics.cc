@@ -1,6 +1,5 @@
 #include "learner/iteration_metrics.h"
 
-#include <cmath>
 #include <cstdio>
 #include <limits>
 
@@ -115,7 +114,9 @@ std::string Cell(const char* format, double value) {
   return cell;
 }
 
-// The value of column `c` in `record` (nan: an own column it lacks).
+// The value of column `c` in `record`: nan for an own column it lacks (an
+// iteration whose batch the algorithm refused, or a restored learner's first
+// record), in the CSV and the gauge alike.
 double Value(const Column& c, const IterationRecord& record) {
   if (c.value != nullptr) return record.*c.value;
   const auto it = record.algorithm.find(c.name);
@@ -162,10 +163,7 @@ IterationExporter::IterationExporter(metrics::Registry* registry, const std::str
 
 void IterationExporter::Publish(const IterationRecord& record) {
   for (size_t i = 0; i < columns_.size(); ++i) {
-    // An own column the record lacks (a restored learner's first record)
-    // keeps its value.
     const double v = Value(columns_[i], record);
-    if (std::isnan(v) && columns_[i].value == nullptr) continue;
     if (gauges_[i] != nullptr) gauges_[i]->Set(v);
     if (counters_[i] != nullptr) counters_[i]->Increment(v);
     if (columns_[i].exported == Export::kCumulative) cumulative_[i].store(v, std::memory_order_relaxed);

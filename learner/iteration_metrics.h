@@ -64,7 +64,7 @@ std::vector<std::string> AlgorithmColumnNames(const std::string& algorithm);
 // then share_1..n).
 std::string CsvHeader(const std::string& algorithm, int num_agents);
 // The row of `record` in a run of `algorithm` (no newline). An own column
-// the record lacks is written as nan.
+// the record lacks (the algorithm refused the iteration's batch) is nan.
 std::string CsvRow(const std::string& algorithm, const IterationRecord& record);
 
 // A run's exported columns as Prometheus families in a registry, set at

@@ -327,6 +327,7 @@ std::string ListJson() {
 // Writes the learner's status record (--status_file, read by a supervisor)
 // if `path` is set; a failure is reported, not fatal.
 void WriteLearnerStatus(const std::string& path, const imca::learner::Learner& learner) {
+  if (path.empty()) return;  // Status() takes the learner's locks.
   const absl::Status written = imca::WriteStatusFile(path, learner.Status());
   if (!written.ok()) std::fprintf(stderr, "learner: status: %s\n", std::string(written.message()).c_str());
 }
@@ -418,7 +419,7 @@ int main(int argc, char** argv) {
   if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;
-  auto server = ServeFromFlags("127.0.0.1:50052", {&service}, *server_options, &port);
+  auto server = ServeFromFlags(kDefaultLearnerAddress, {&service}, *server_options, &port);
   if (!server.ok()) return Fail(std::string(server.status().message()));
   std::fprintf(stderr, "learner: serving on port %d (%s)\n", port,
                TransportSummary(server_options->transport, /*server=*/true).c_str());

@@ -193,7 +193,7 @@ int main(int argc, char** argv) {
   if (!metrics_server.ok()) return Fail(std::string(metrics_server.status().message()));
   InstallShutdownSignalHandlers();
   int port = 0;
-  auto server = ServeFromFlags("127.0.0.1:50051", {&service}, *server_options, &port);
+  auto server = ServeFromFlags(kDefaultRewardServerAddress, {&service}, *server_options, &port);
   if (!server.ok()) return Fail(std::string(server.status().message()));
   std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d (%s)\n",
                std::string((*scenario)->name()).c_str(), kind.c_str(), reward::CreditName(config.credit).c_str(), port,
@@ -201,6 +201,7 @@ int main(int argc, char** argv) {
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));
   auto write_status = [&] {
+    if (service_flags->status_file.empty()) return;  // Stats() takes the scorer's lock.
     const absl::Status written = WriteStatusFile(service_flags->status_file, service.Stats());
     if (!written.ok()) std::fprintf(stderr, "reward_server: status: %s\n", std::string(written.message()).c_str());
   };

@@ -8,8 +8,8 @@
 #include "rpc/transport_flags.h"
 
 ABSL_FLAG(std::string, listen, "",
-          "host:port to serve on (default: the reward server's 127.0.0.1:50051, the learner's 127.0.0.1:50052; "
-          "port 0: any free port)");
+          absl::StrCat("host:port to serve on (default: the reward server's ", imca::kDefaultRewardServerAddress,
+                       ", the learner's ", imca::kDefaultLearnerAddress, "; port 0: any free port)"));
 ABSL_FLAG(std::string, port_file, "", "if set, write the bound port to this file once serving");
 
 ABSL_FLAG(bool, tls_client_auth, false,

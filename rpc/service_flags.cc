@@ -2,8 +2,10 @@
 #include "rpc/service_flags.h"
 
 #include "absl/flags/flag.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "base/atomic_file.h"
+#include "google/protobuf/descriptor.h"
 #include "google/protobuf/util/json_util.h"
 
 ABSL_FLAG(bool, list, false,
@@ -40,6 +42,29 @@ absl::Status WriteStatusFile(const std::string& path, const google::protobuf::Me
   std::string json;
   if (const auto printed = google::protobuf::util::MessageToJsonString(status, &json, options); !printed.ok()) {
     return absl::InternalError(absl::StrFormat("status record: %s", printed.ToString()));
+  }
+  // Singular 64-bit integers unquoted: the printer writes them as
+  // "name":"<value>", unique in the object (field names are).
+  const google::protobuf::Descriptor* descriptor = status.GetDescriptor();
+  const google::protobuf::Reflection* reflection = status.GetReflection();
+  for (int i = 0; i < descriptor->field_count(); ++i) {
+    const google::protobuf::FieldDescriptor* field = descriptor->field(i);
+    if (field->is_repeated()) continue;
+    std::string value;
+    switch (field->cpp_type()) {
+      case google::protobuf::FieldDescriptor::CPPTYPE_INT64:
+        value = absl::StrCat(reflection->GetInt64(status, field));
+        break;
+      case google::protobuf::FieldDescriptor::CPPTYPE_UINT64:
+        value = absl::StrCat(reflection->GetUInt64(status, field));
+        break;
+      default:
+        continue;
+    }
+    const std::string quoted = absl::StrCat("\"", field->name(), "\":\"", value, "\"");
+    if (const size_t at = json.find(quoted); at != std::string::npos) {
+      json.replace(at, quoted.size(), absl::StrCat("\"", field->name(), "\":", value));
+    }
   }
   // The message's object with "time" appended: {...} -> {...,"time":t}.
   if (json.size() < 2 || json.back() != '}') return absl::InternalError("status record: not a JSON object");

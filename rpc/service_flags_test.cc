@@ -55,19 +55,44 @@ TEST(ServiceFlagsTest, StatusFilesAreTheProtoInItsJsonMappingWithTheTime) {
   std::ifstream again(path);
   std::getline(again, line);
   // The proto's names, every field (unrolls_resent at its default too),
-  // 64-bit integers quoted as the mapping does, then the time.
-  EXPECT_THAT(line, StartsWith(R"({"actor_id":"actor-1","incarnation":"18364758544493064720",)"
-                               R"("unrolls_pushed":"12","unrolls_resent":"0","transitions_scored":"0",)"
+  // 64-bit integers as numbers, then the time.
+  EXPECT_THAT(line, StartsWith(R"({"actor_id":"actor-1","incarnation":18364758544493064720,)"
+                               R"("unrolls_pushed":12,"unrolls_resent":0,"transitions_scored":0,)"
                                R"("state":"acting","time":)"));
   const double time = std::stod(line.substr(line.rfind(':') + 1));
   EXPECT_GE(time, before - 0.001);
   EXPECT_LE(time, UnixSeconds() + 0.001);
-  // It parses back into the same message (the time is not one of its fields).
+  // It parses back into the same message (the time is not one of its
+  // fields; the mapping's parser takes 64-bit integers as numbers too).
   google::protobuf::util::JsonParseOptions options;
   options.ignore_unknown_fields = true;
   v1::ActorStatus parsed;
   ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(line, &parsed, options).ok());
   EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(parsed, status));
+  std::filesystem::remove(path);
+}
+
+TEST(ServiceFlagsTest, OnlyTheSixtyFourBitFieldsAreUnquoted) {
+  const std::string path = ::testing::TempDir() + "/status_ids_" + std::to_string(getpid()) + ".json";
+  v1::ActorStatus status;
+  status.set_actor_id("7");  // A string that looks like a number stays a string.
+  status.set_unrolls_pushed(-1);
+  status.set_unrolls_resent(7);
+  ASSERT_TRUE(WriteStatusFile(path, status).ok());
+  std::ifstream in(path);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_THAT(line, StartsWith(R"({"actor_id":"7","incarnation":0,"unrolls_pushed":-1,"unrolls_resent":7,)"));
+  v1::LearnerStatus learner;
+  learner.add_actors_seen("1");
+  learner.set_env_steps(int64_t{1} << 40);
+  learner.set_queue_depth(3);
+  ASSERT_TRUE(WriteStatusFile(path, learner).ok());
+  std::ifstream again(path);
+  ASSERT_TRUE(std::getline(again, line));
+  EXPECT_THAT(line, HasSubstr(R"("env_steps":1099511627776,)"));
+  EXPECT_THAT(line, HasSubstr(R"("actors_seen":["1"],)"));
+  EXPECT_THAT(line, HasSubstr(R"("queue_depth":3,)"));
   std::filesystem::remove(path);
 }
 

@@ -11,6 +11,11 @@
 
 namespace imca {
 
+// Where the services listen by default (and the actors dial): --listen's
+// default of each server, --reward_server and --learner's of the actor.
+inline constexpr char kDefaultRewardServerAddress[] = "127.0.0.1:50051";
+inline constexpr char kDefaultLearnerAddress[] = "127.0.0.1:50052";
+
 // The transport flags of the servers: --tls_cert, --tls_key, --tls_ca,
 // --tls_client_auth, --token_file and --max_receive_mb. Call after
 // absl::ParseCommandLine. Errors: INVALID_ARGUMENT naming the flag.

@@ -17,7 +17,6 @@ import unittest
 
 from imca_tools import binaries
 from imca_tools.supervisor import run_processes  # a run's live processes by name
-from imca_tools.runs import read_status
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 LAUNCH = binaries.module_argv("train")
@@ -69,7 +68,7 @@ class Drill:
         return self.proc.returncode
 
     def status(self, name):
-        return read_status(os.path.join(self.logs, name + ".status.json"))
+        return read_json(os.path.join(self.logs, name + ".status.json"))
 
     def trained(self):
         return rows(os.path.join(self.logs, "trained_unrolls.csv"))

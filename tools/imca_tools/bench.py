@@ -252,8 +252,8 @@ def soak(args, base):
             if launcher.poll() is not None:
                 sys.exit(f"imca bench: the run ended: {launcher.stderr.read().strip()}")
             rss = {name: rss_bytes(pid) for name, pid in run_processes(run_dir).items()}
-            status = runs.read_status(os.path.join(run_dir, "logs", "reward_server.status.json")) or {}
-            learner = runs.read_status(os.path.join(run_dir, "logs", "learner.status.json")) or {}
+            status = runs.read_json(os.path.join(run_dir, "logs", "reward_server.status.json")) or {}
+            learner = runs.read_json(os.path.join(run_dir, "logs", "learner.status.json")) or {}
             samples.append((time.time() - start, rss, status.get("distinct_keys", 0) + status.get("distinct_local_keys", 0),
                             learner.get("env_steps", 0)))
     finally:
@@ -318,8 +318,8 @@ def drill(args, base):
         if pid is None:
             sys.exit(f"imca bench: no {victim} to kill (the run ended?)")
         # What the victim had said just before (its status is at most 1 s old).
-        before = runs.read_status(os.path.join(logs, f"{victim}.status.json")) or {}
-        learner = runs.read_status(os.path.join(logs, "learner.status.json")) or {}
+        before = runs.read_json(os.path.join(logs, f"{victim}.status.json")) or {}
+        learner = runs.read_json(os.path.join(logs, "learner.status.json")) or {}
         os.kill(pid, signal.SIGKILL)
         kills.append((victim, time.time() - start, before, learner))
         print(f"killed {victim} at {time.time() - start:.0f} s ({learner.get('env_steps', 0):,} env steps)", flush=True)
@@ -327,9 +327,9 @@ def drill(args, base):
     if launcher.returncode != 0:
         sys.exit(f"imca bench: the killed run failed: {err.strip()}")
     summary = runs.read_json(os.path.join(run_dir, "summary.json"))
-    reward = runs.read_status(os.path.join(run_dir, "logs", "reward_server.status.json"))
-    learner = runs.read_status(os.path.join(run_dir, "logs", "learner.status.json"))
-    answered = sum((runs.read_status(os.path.join(run_dir, "logs", f"actor-{i}.status.json")) or {})
+    reward = runs.read_json(os.path.join(run_dir, "logs", "reward_server.status.json"))
+    learner = runs.read_json(os.path.join(run_dir, "logs", "learner.status.json"))
+    answered = sum((runs.read_json(os.path.join(run_dir, "logs", f"actor-{i}.status.json")) or {})
                    .get("transitions_scored", 0) for i in range(2))
     unbroken = [r[1]["final_success_rate"] for r in results]
     print("\n| run | final success | env steps | wall s | restarts |")
@@ -360,7 +360,7 @@ def drill(args, base):
             print(f"actor-1 killed at {at:.0f} s: its incarnation {before.get('incarnation', 0):016x} had "
                   f"{before.get('unrolls_pushed', 0)} unrolls acked (status, <= 1 s old), {len(trained)} trained "
                   f"and kept; resent across all kills: "
-                  f"{sum((runs.read_status(os.path.join(logs, f'actor-{i}.status.json')) or {}).get('unrolls_resent', 0) for i in range(2))}"
+                  f"{sum((runs.read_json(os.path.join(logs, f'actor-{i}.status.json')) or {}).get('unrolls_resent', 0) for i in range(2))}"
                   " (surviving incarnations)")
         else:
             text = log_text("learner.1.log")

@@ -6,7 +6,6 @@ complete), steps to a success rate.
 import csv
 import json
 import os
-import re
 
 from . import binaries
 
@@ -25,21 +24,6 @@ def read_json(path):
             return json.load(f)
     except (OSError, ValueError):
         return None
-
-
-_INT64 = re.compile(r"-?[0-9]+")
-
-
-def read_status(path):
-    """A binary's --status_file record, or None if there is none yet:
-    protobuf's JSON mapping of its proto (LearnerStatus, RewardStats,
-    ActorStatus; rpc/service_flags.h) plus "time", Unix seconds. The mapping
-    quotes 64-bit integers; here they are ints again (every quoted integer is
-    one: the records' strings are names and states)."""
-    record = read_json(path)
-    if not isinstance(record, dict):
-        return None
-    return {k: int(v) if isinstance(v, str) and _INT64.fullmatch(v) else v for k, v in record.items()}
 
 
 def read_config(run_dir):

@@ -12,7 +12,7 @@ import sys
 import time
 
 from . import binaries
-from .runs import read_status
+from .runs import read_json
 
 # The supervisor's own settings (./imca train --max-restarts, --stall-seconds;
 # docs/reliability.md): how patient the stand-in for a restart policy is, not
@@ -122,7 +122,7 @@ class Services:
 
     def _stalled(self, name, now):
         """Why `name` counts as stalled, or None."""
-        status = read_status(self.status_file(name))
+        status = read_json(self.status_file(name))
         if status is None or "time" not in status:
             # Starting up (a reward server replaying a long journal, a learner
             # loading a checkpoint) gets a longer grace before its first status.
@@ -198,7 +198,7 @@ class Services:
         for the other). Kills the actors, which supervise() then restarts:
         a fresh actor acts with whatever policy the learner has."""
         now = time.time()
-        status = read_status(self.status_file(learner)) or {}
+        status = read_json(self.status_file(learner)) or {}
         steps = status.get("env_steps")
         if steps != self._learner_steps or learner in self.pending or status.get("seconds_training", 0) > 0:
             self._learner_steps, self._learner_moved = steps, now
@@ -207,7 +207,7 @@ class Services:
         # so: a silent actor is the stall detector's to restart, first.
         if now - self._learner_moved < 2 * self.stall_seconds or any(a in self.pending for a in actors):
             return
-        statuses = [read_status(self.status_file(a)) or {} for a in actors]
+        statuses = [read_json(self.status_file(a)) or {} for a in actors]
         if statuses and all(st.get("state") == "waiting_policy" and now - st.get("time", 0) < self.stall_seconds / 2
                             for st in statuses):
             print(f"\nimca train: the learner has not trained for {now - self._learner_moved:.0f} s while every "

@@ -48,7 +48,7 @@ class Maddpg final : public Algorithm {
   // learning_starts).
   absl::Status Add(const FeaturisedUnroll& unroll) override;
   absl::StatusOr<IterationStats> Train() override;
-  // "mlp_relu" (policy.<i>.*), or without shared parameters one network per
+  // MLP_RELU (policy.<i>.*), or without shared parameters one network per
   // agent (agent<k>.policy.<i>.*, agent_networks n).
   v1::Policy ExportPolicy(int64_t version) const override;
   absl::Status Save(const std::string& path) const override;

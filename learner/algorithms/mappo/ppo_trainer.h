@@ -158,8 +158,8 @@ class PpoTrainer {
   absl::StatusOr<PpoStats> Train(const PpoBatch& batch);
 
   // The actor as named tensors, see learner_service.proto: architecture
-  // "mlp_tanh" ("policy.<i>.weight"/"policy.<i>.bias"), or with layer_norm
-  // "mlp_tanh_layernorm" (plus "policy.input_norm.*" and "policy.<i>.norm.*").
+  // MLP_TANH ("policy.<i>.weight"/"policy.<i>.bias"), or with layer_norm
+  // MLP_TANH_LAYERNORM (plus "policy.input_norm.*" and "policy.<i>.norm.*").
   v1::Policy ExportPolicy(int64_t version) const;
 
   // Writes / reads actor, critic, optimiser state and return normalisers.
