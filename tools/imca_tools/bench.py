@@ -1,10 +1,16 @@
-"""./imca bench speed|env|reward|learn|soak|drill|python: benchmarks run by hand (never in CI).
+"""./imca bench speed|env|reward|credit|learn|soak|drill|python: benchmarks run by hand (never in CI).
 
 speed  component ceilings (bench_speed) and end-to-end training throughput,
        with the ratio end-to-end / learner-only.
 env    joint env steps/s of every scenario on one core (vectorised).
 reward Score throughput for count, rnd, sf with 2 and 4 agents; counterfactual share;
        the count journal's cost.
+credit what credit costs end to end, in one run with the same binaries: env
+       steps/s of ./imca train for each task (predator_prey, 4 agents;
+       coop_nav with 3 agents) x reward kind (count, rnd, sf) x credit
+       (none, shared, imca), with imca / shared, and the share of the
+       learner's iteration spent waiting for unrolls (collection, Score and
+       pushes: what the learner cannot overlap in synchronous collection).
 soak   16 actors for 10 minutes on loopback: RSS of every process every 10 s and
        its growth after warm-up (the count tables' share apart).
 drill  kill -9 of the reward server, an actor and the learner 20 s apart in a
@@ -112,6 +118,57 @@ def reward_bench(args, base):
     print(r.stdout, end="")
     if r.returncode != 0:
         sys.exit(f"imca bench: bench_reward failed: {r.stderr.strip()}")
+
+
+# ./imca bench credit's tasks: (label, ./imca train flags).
+CREDIT_TASKS = [("predator_prey (4 agents)", ["--scenario", "predator_prey"]),
+                ("coop_nav, 3 agents", ["--scenario", "coop_nav", "--num-agents", "3"])]
+
+
+def waiting_share(rows):
+    """Over the second half of a run: the learner's ms_wait as a share of the
+    iterations' wall time (wall_seconds is cumulative)."""
+    half = rows[len(rows) // 2:]
+    if len(half) < 2:
+        return None
+    wall_ms = (float(half[-1]["wall_seconds"]) - float(half[0]["wall_seconds"])) * 1e3
+    waited = sum(float(r["ms_wait"]) for r in half[1:])
+    return waited / wall_ms if wall_ms > 0 else None
+
+
+def credit_bench(args, base):
+    """The end-to-end credit-cost table (issue: imca credit at shared's price)."""
+    rewards = [r for r in args.rewards.split(",") if r]
+    credits = [c for c in args.credits.split(",") if c]
+    known = binaries.facts()
+    for reward in rewards:
+        if reward not in known["rewards"]:
+            sys.exit(f"imca bench credit: --rewards: '{reward}' is not one of {', '.join(known['rewards'])}")
+    for credit in credits:
+        if credit not in known["credits"]:
+            sys.exit(f"imca bench credit: --credits: '{credit}' is not one of {', '.join(known['credits'])}")
+    results = {}
+    for task, flags in CREDIT_TASKS:
+        for reward in rewards:
+            for credit in credits:
+                slug = f"{flags[1]}{'-' + flags[3] if len(flags) > 2 else ''}-{reward}-{credit}"
+                started = time.time()
+                _, rows = train(os.path.join(base, slug), ["--steps", str(args.steps), "--reward", reward,
+                                                           "--credit", credit, "--seed", str(args.seed)] + flags)
+                results[task, reward, credit] = (steady_rate(rows), waiting_share(rows))
+                rate, wait = results[task, reward, credit]
+                print(f"{task} {reward} {credit}: {rate:,.0f} env steps/s, learner waiting {wait:.0%} "
+                      f"({time.time() - started:.0f} s)", flush=True)
+    print("\n| task | reward | " + " | ".join(credits) + " | imca / shared |")
+    print("|---|---|" + "---|" * len(credits) + "---|")
+    for task, _ in CREDIT_TASKS:
+        for reward in rewards:
+            cells = [f"{results[task, reward, c][0]:,.0f} ({results[task, reward, c][1]:.0%} wait)" for c in credits]
+            ratio = (f"{results[task, reward, 'imca'][0] / results[task, reward, 'shared'][0]:.2f}"
+                     if "imca" in credits and "shared" in credits else "-")
+            print(f"| {task} | {reward} | " + " | ".join(cells) + f" | {ratio} |")
+    print(f"\nenv steps/s over each run's second half ({args.steps:,} env steps, seed {args.seed}); "
+          "(x% wait): the learner's ms_wait share of its iterations' wall time. Run folders: " + base)
 
 
 def tail_mean(rows, key, fraction=0.25):
@@ -539,6 +596,11 @@ def main(argv=None):
     e.add_argument("--rounds", type=int, default=7)
     rw = sub.add_parser("reward")
     rw.add_argument("--rounds", type=int, default=5)
+    cr = sub.add_parser("credit")
+    cr.add_argument("--steps", type=int, default=400_000, help="env steps of each run")
+    cr.add_argument("--rewards", default="count,rnd,sf")
+    cr.add_argument("--credits", default="none,shared,imca")
+    cr.add_argument("--seed", type=int, default=1)
     sk = sub.add_parser("soak")
     sk.add_argument("--actors", type=int, default=16)
     sk.add_argument("--envs-per-actor", type=int, default=8)
@@ -576,7 +638,7 @@ def main(argv=None):
                         + (f"{args.scenario}-{args.reward}-" if args.what == "learn" else "") + stamp)
     base = os.path.abspath(base)
     os.makedirs(base, exist_ok=True)
-    {"speed": speed, "env": env_bench, "reward": reward_bench, "learn": learn, "soak": soak,
+    {"speed": speed, "env": env_bench, "reward": reward_bench, "credit": credit_bench, "learn": learn, "soak": soak,
      "drill": drill, "python": python_bench}[args.what](args, base)
 
 
