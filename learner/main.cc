@@ -1,15 +1,12 @@
 // The learner: wires flags to a Learner and serves LearnerService.
 #include <cstdio>
 #include <optional>
-#include <filesystem>
-#include <fstream>
 #include <thread>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
-#include "base/atomic_file.h"
 #include "base/json.h"
 #include "env/env.h"
 #include "env/scenario_flags.h"

@@ -9,7 +9,6 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
-#include "base/atomic_file.h"
 #include "base/json.h"
 #include "env/env.h"
 #include "env/scenario_flags.h"
