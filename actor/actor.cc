@@ -80,6 +80,22 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
   truncated_.reset(new bool[envs]);
 }
 
+const char* Actor::PhaseName(Phase phase) {
+  switch (phase) {
+    case Phase::kActing:
+      return "acting";
+    case Phase::kScoring:
+      return "scoring";
+    case Phase::kPushing:
+      return "pushing";
+    case Phase::kChoosingPolicy:
+      return "choosing_policy";
+    case Phase::kDone:
+      break;
+  }
+  return "done";
+}
+
 Actor::Counters Actor::RegisterMetrics(metrics::Registry* registry) {
   using metrics::Type;
   Counters c;
@@ -102,6 +118,13 @@ Actor::Counters Actor::RegisterMetrics(metrics::Registry* registry) {
   c.policy_version = &registry->AddGauge({"imca_actor_policy_version", Type::kGauge,
                                           "Version of the policy the actor acts with (-1: none yet)."});
   c.policy_version->Set(-1);
+  for (int p = 0; p < kNumPhases; ++p) {
+    c.phase_seconds.push_back(&registry->AddCounter(
+        {"imca_actor_phase_seconds_total", Type::kCounter,
+         "Seconds in each phase of the actor's loop: acting, scoring, pushing, choosing_policy (synchronous: "
+         "mostly waiting for the next policy)."},
+        {{"phase", PhaseName(static_cast<Phase>(p))}}));
+  }
   c.refused = AddRejectionCounters(registry, {"imca_actor_unrolls_refused_total", Type::kCounter,
                                               "Unrolls the learner refused or dropped, by reason."});
   return c;
@@ -293,12 +316,19 @@ absl::Status Actor::Run() {
   Phase phase = Phase::kActing;
   while (phase != Phase::kDone) {
     if (stop_.stopped()) break;
+    auto started = std::chrono::steady_clock::now();
+    const Phase timed = phase;
     switch (phase) {
       case Phase::kActing:
         // No policy: the first, or the learner went back and had none to give.
-        if (policies_.policy() == nullptr && !policies_.Refresh(/*wait=*/true)) {
-          phase = Phase::kDone;  // The policy client's error() says why, if not stopped.
-          break;
+        // Waiting for one counts as choosing a policy.
+        if (policies_.policy() == nullptr) {
+          const bool got = policies_.Refresh(/*wait=*/true);
+          started = ChargePhase(Phase::kChoosingPolicy, started);
+          if (!got) {
+            phase = Phase::kDone;  // The policy client's error() says why, if not stopped.
+            break;
+          }
         }
         unroll.Clear();
         Rollout(&unroll);
@@ -337,12 +367,19 @@ absl::Status Actor::Run() {
       case Phase::kDone:
         break;
     }
+    ChargePhase(timed, started);
   }
   sender_.Close();
   if (trace_.has_value()) trace_->Flush();
   WriteStatus("done", /*force=*/true);
   // OK, unless something this actor cannot retry stopped it.
   return !error_.ok() ? error_ : policies_.error();
+}
+
+std::chrono::steady_clock::time_point Actor::ChargePhase(Phase phase, std::chrono::steady_clock::time_point since) {
+  const auto now = std::chrono::steady_clock::now();
+  counters_.phase_seconds[static_cast<int>(phase)]->Increment(std::chrono::duration<double>(now - since).count());
+  return now;
 }
 
 void Actor::WriteStatus(const char* state, bool force) {
@@ -357,6 +394,9 @@ void Actor::WriteStatus(const char* state, bool force) {
   status.set_unrolls_resent(unrolls_resent_);
   status.set_transitions_scored(transitions_scored_);
   status.set_state(state);
+  for (int p = 0; p < kNumPhases; ++p) {
+    (*status.mutable_phase_seconds())[PhaseName(static_cast<Phase>(p))] = counters_.phase_seconds[p]->value();
+  }
   const absl::Status written = WriteStatusFile(config_.status_file, status);
   if (!written.ok()) {
     std::fprintf(stderr, "%s: status: %s\n", config_.actor_id.c_str(), std::string(written.message()).c_str());

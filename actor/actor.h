@@ -61,6 +61,7 @@ struct ActorConfig {
   // most every status_period and when Run() returns, for a supervisor:
   // {"actor_id", "incarnation", "unrolls_pushed", "unrolls_resent",
   //  "transitions_scored", "state": "acting"|"waiting_policy"|"retrying"|"done",
+  //  "phase_seconds": {"acting", "scoring", "pushing", "choosing_policy"},
   //  "time": seconds since the epoch}.
   std::string status_file;
   std::chrono::milliseconds status_period{1000};
@@ -123,6 +124,9 @@ class Actor {
     kChoosingPolicy,  // Delivered: taking a newer policy, or waiting for one (synchronous).
     kDone,
   };
+  static constexpr int kNumPhases = static_cast<int>(Phase::kDone);  // The timed ones.
+  // "acting", "scoring", "pushing", "choosing_policy".
+  static const char* PhaseName(Phase phase);
 
   int64_t unrolls_pushed() const { return unrolls_pushed_; }
   // Pushes sent again after a lost stream.
@@ -155,6 +159,8 @@ class Actor {
   Phase AfterFailure(const absl::Status& status, Phase retry, const char* peer, Backoff* backoff);
   // The phase after an unroll was delivered.
   Phase AfterDelivery(int64_t version_acted);
+  // Adds the time from `since` to now to `phase`'s seconds; returns now.
+  std::chrono::steady_clock::time_point ChargePhase(Phase phase, std::chrono::steady_clock::time_point since);
   // Writes config_.status_file if status_period has passed since the last
   // write (or `force`).
   void WriteStatus(const char* state, bool force);
@@ -189,7 +195,8 @@ class Actor {
     metrics::Counter* reconnects;
     metrics::Counter* retries;
     metrics::Counter* policy_updates;
-    std::vector<metrics::Counter*> refused;  // By v1::Rejection.
+    std::vector<metrics::Counter*> phase_seconds;  // By Phase, before kDone.
+    std::vector<metrics::Counter*> refused;        // By v1::Rejection.
     metrics::Gauge* policy_version;
   };
   Counters counters_;

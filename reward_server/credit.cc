@@ -5,6 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "base/enum_names.h"
+#include "reward_server/scorer.h"
 
 namespace imca::reward {
 
@@ -16,6 +17,11 @@ constexpr EnumName<Credit> kCreditNames[] = {{Credit::kNone, "none"},
                                              {Credit::kImca, "imca"}};
 constexpr EnumName<Permutation> kPermutationNames[] = {
     {Permutation::kOff, "off"}, {Permutation::kRandom, "random"}, {Permutation::kCanonical, "canonical"}};
+constexpr EnumName<ScorePhase> kScorePhaseNames[] = {
+    {ScorePhase::kLockWait, "lock_wait"}, {ScorePhase::kEncode, "encode"},
+    {ScorePhase::kNovelty, "novelty"},    {ScorePhase::kCounterfactual, "counterfactual"},
+    {ScorePhase::kTrain, "train"},        {ScorePhase::kCredit, "credit"}};
+static_assert(sizeof(kScorePhaseNames) / sizeof(kScorePhaseNames[0]) == kNumScorePhases);
 
 }  // namespace
 
@@ -27,6 +33,7 @@ std::string CreditName(Credit credit) { return NameOf(credit, kCreditNames); }
 std::string PermutationName(Permutation permutation) { return NameOf(permutation, kPermutationNames); }
 std::vector<std::string> CreditNames() { return Names(kCreditNames); }
 std::vector<std::string> PermutationNames() { return Names(kPermutationNames); }
+std::string ScorePhaseName(ScorePhase phase) { return NameOf(phase, kScorePhaseNames); }
 
 void SoftmaxShares(const float* contributions, int n, double temperature, float* shares) {
   double max = contributions[0] / temperature;

@@ -1,18 +1,55 @@
 #include "reward_server/credit_scorer.h"
 
 #include <algorithm>
+#include <chrono>
 #include <vector>
 
 #include "base/status_macros.h"
 
 namespace imca::reward {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+// Adds its lifetime to the credit phase of `seconds` (if set).
+class CreditTimer {
+ public:
+  explicit CreditTimer(ScoreSeconds* seconds) : seconds_(seconds), start_(Clock::now()) {}
+  ~CreditTimer() {
+    if (seconds_ != nullptr) SecondsOf(*seconds_, ScorePhase::kCredit) += SecondsSince(start_);
+  }
+
+ private:
+  ScoreSeconds* const seconds_;
+  const Clock::time_point start_;
+};
+
+}  // namespace
 
 CreditScorer::CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n)
     : returns_influences_(novelty->ReturnsInfluences()), novelty_(std::move(novelty)), config_(config), n_(n) {}
 
-absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, NoveltyOutput out,
+                                   ScoreSeconds* seconds) {
+  if (seconds == nullptr) {
+    absl::MutexLock lock(&mu_);
+    return novelty_->Compute(batch, dry_run, out);
+  }
+  // The kind adds its parts to `parts`; the rest of its call is novelty.
+  ScoreSeconds parts{};
+  out.seconds = &parts;
+  const Clock::time_point waiting = Clock::now();
   absl::MutexLock lock(&mu_);
-  return novelty_->Compute(batch, dry_run, out);
+  const Clock::time_point held = Clock::now();
+  const absl::Status status = novelty_->Compute(batch, dry_run, out);
+  double accounted = 0;
+  for (double part : parts) accounted += part;
+  SecondsOf(parts, ScorePhase::kLockWait) = std::chrono::duration<double>(held - waiting).count();
+  SecondsOf(parts, ScorePhase::kNovelty) += std::max(0.0, SecondsSince(held) - accounted);
+  for (int p = 0; p < kNumScorePhases; ++p) (*seconds)[p] += parts[p];
+  return status;
 }
 
 void CreditScorer::FillStats(v1::RewardStats* stats) const {
@@ -63,7 +100,8 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   if (config_.credit == Credit::kIndependent) {
     // The kind's local novelties land in contributions, reported as N_a.
     novelty.local = out.contributions;
-    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty));
+    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, out.seconds));
+    const CreditTimer timer(out.seconds);
     for (int64_t i = 0; i < N; ++i) {
       const float* local = out.contributions + i * n;
       float* rewards = out.agent_rewards + i * n;
@@ -78,7 +116,8 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   std::vector<float> joint(N);
   novelty.joint = joint.data();
   if (config_.credit == Credit::kShared) {
-    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty));
+    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, out.seconds));
+    const CreditTimer timer(out.seconds);
     for (int64_t i = 0; i < N; ++i) {
       out.global_rewards[i] = beta * joint[i];
       for (int a = 0; a < n; ++a) {
@@ -94,7 +133,8 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   std::vector<double> divisor(N * n, 1.0);
   novelty.contributions = out.contributions;
   novelty.agent_divisor = divisor.data();
-  IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty));
+  IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, out.seconds));
+  const CreditTimer timer(out.seconds);
   for (int64_t i = 0; i < N; ++i) {
     out.global_rewards[i] = beta * joint[i];
     float* shares = out.shares + i * n;

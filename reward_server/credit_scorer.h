@@ -27,6 +27,8 @@ namespace imca::reward {
 // influences a share can fall outside [0, 1]: they are diagnostics only).
 // Thread-safe: one mutex serialises the novelty's calls (the credit rule runs
 // outside it); a snapshot is copied under it and written without it.
+// ScoreOutput::seconds gets the call's lock wait, the kind's parts and the
+// credit rule's time.
 class CreditScorer : public Scorer {
  public:
   // `n` agents. The caller checks novelty->Supports(config.credit) first
@@ -45,7 +47,10 @@ class CreditScorer : public Scorer {
   Novelty& novelty() ABSL_NO_THREAD_SAFETY_ANALYSIS { return *novelty_; }
 
  private:
-  absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+  // The novelty's call under the lock; with `seconds`, adds the lock wait,
+  // the kind's parts and the rest of its call (novelty) to it.
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, NoveltyOutput out, ScoreSeconds* seconds)
+      ABSL_LOCKS_EXCLUDED(mu_);
 
   mutable absl::Mutex save_mu_ ABSL_ACQUIRED_BEFORE(mu_);  // Serialises snapshot writes.
   mutable absl::Mutex mu_;

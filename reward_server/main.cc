@@ -38,6 +38,8 @@ ABSL_FLAG(double, rnd_lr, kKinds.rnd.learning_rate, "rnd: Adam learning rate of 
 ABSL_FLAG(double, rnd_update_proportion, kKinds.rnd.update_proportion,
           "rnd: share of each request's transitions the predictor trains on");
 ABSL_FLAG(int, threads, kKinds.threads, "LibTorch intra-op threads (rnd, sf)");
+ABSL_FLAG(int, rnd_counterfactual_threads, kKinds.rnd.counterfactual_threads,
+          "rnd with imca credit: threads of the counterfactual rows (values do not depend on it)");
 ABSL_FLAG(std::optional<std::string>, credit, std::nullopt,
           "credit mode: none|independent|shared|imca (default: the reward kind's; --list)");
 ABSL_FLAG(std::string, permutation, imca::reward::PermutationName(kScorer.permutation),
@@ -87,6 +89,7 @@ std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig
       .AddExact("rnd_lr", kinds.rnd.learning_rate)
       .AddExact("rnd_update_proportion", kinds.rnd.update_proportion)
       .Add("threads", kinds.threads)
+      .Add("rnd_counterfactual_threads", kinds.rnd.counterfactual_threads)
       .Add("snapshot_every", absl::GetFlag(FLAGS_snapshot_every))
       .Add("journal_fsync", absl::GetFlag(FLAGS_journal_fsync))
       .Text();
@@ -153,6 +156,7 @@ int main(int argc, char** argv) {
   kinds.rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
   kinds.rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
   kinds.threads = absl::GetFlag(FLAGS_threads);
+  kinds.rnd.counterfactual_threads = absl::GetFlag(FLAGS_rnd_counterfactual_threads);
   kinds.sf.gamma = absl::GetFlag(FLAGS_sf_gamma);
   kinds.sf.learning_rate = absl::GetFlag(FLAGS_sf_lr);
   kinds.influence.eta = absl::GetFlag(FLAGS_eta);

@@ -2,6 +2,7 @@
 
 #include <sys/stat.h>
 
+#include <chrono>
 #include <cstdio>
 #include <functional>
 
@@ -48,6 +49,15 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
         "Optimiser steps of the learned novelty models (rnd, sf)."},
        &v1::RewardStats::model_updates},
   };
+  // Before the snapshot: its first read (now) takes Stats(), which reads them.
+  for (int p = 0; p < kNumScorePhases; ++p) {
+    score_seconds_[p] = &registry_.AddCounter(
+        {"imca_reward_score_seconds_total", metrics::Type::kCounter,
+         "Answered Score calls' seconds by phase: lock_wait, encode, novelty, counterfactual, train, credit."},
+        {{"phase", ScorePhaseName(static_cast<ScorePhase>(p))}});
+  }
+  handler_seconds_ = &registry_.AddCounter({"imca_reward_score_handler_seconds_total", metrics::Type::kCounter,
+                                            "Answered Score calls' seconds in the handler, validation to answer."});
   // One Stats() per scrape (it takes the scorer's lock) for every family.
   registry_.AddSnapshot([this](metrics::Snapshot& snapshot) {
     const v1::RewardStats stats = Stats();
@@ -57,6 +67,7 @@ RewardServiceImpl::RewardServiceImpl(const env::Scenario* scenario, Scorer* scor
 
 grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::ScoreRequest* request,
                                       v1::ScoreResponse* response) {
+  const auto entered = std::chrono::steady_clock::now();
   if (!accepting_.load()) {
     ++requests_rejected_;
     return grpc::Status(grpc::StatusCode::UNAVAILABLE, "reward server is shutting down");
@@ -115,6 +126,8 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::Sc
     response->mutable_influences()->Resize(count * n * n, 0.0f);
     out.influences = response->mutable_influences()->mutable_data();
   }
+  ScoreSeconds seconds{};
+  out.seconds = &seconds;
   // A retried Score (same actor incarnation and sequence as its last one:
   // the first answer was lost) is answered again but not counted again.
   bool dry_run = request->dry_run();
@@ -146,6 +159,8 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::Sc
   }
   if (!dry_run) transitions_scored_ += count;
   ++requests_served_;
+  for (int p = 0; p < kNumScorePhases; ++p) score_seconds_[p]->Increment(seconds[p]);
+  handler_seconds_->Increment(std::chrono::duration<double>(std::chrono::steady_clock::now() - entered).count());
   return grpc::Status::OK;
 }
 
@@ -171,6 +186,10 @@ v1::RewardStats RewardServiceImpl::Stats() const {
   response->set_requests_rejected(requests_rejected_.load());
   response->set_requests_repeated(requests_repeated_.load());
   scorer_->FillStats(response);
+  for (int p = 0; p < kNumScorePhases; ++p) {
+    (*response->mutable_score_seconds())[ScorePhaseName(static_cast<ScorePhase>(p))] = score_seconds_[p]->value();
+  }
+  response->set_handler_seconds(handler_seconds_->value());
   return stats;
 }
 

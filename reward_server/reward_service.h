@@ -1,10 +1,11 @@
 #ifndef IMCA_REWARD_SERVER_REWARD_SERVICE_H_
 #define IMCA_REWARD_SERVER_REWARD_SERVICE_H_
 
+#include <array>
 #include <atomic>
-#include <utility>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include "absl/base/thread_annotations.h"
 #include "absl/container/flat_hash_map.h"
@@ -57,7 +58,8 @@ class RewardServiceImpl final : public v1::RewardService::Service {
 
   // The reward server's Prometheus families (docs/metrics.md), read from
   // Stats() at each scrape: transitions scored, requests served, rejected
-  // and repeated, table entries, model updates.
+  // and repeated, table entries, model updates; and the answered calls'
+  // seconds by phase and in the handler.
   const metrics::Registry& metrics() const { return registry_; }
 
  private:
@@ -78,6 +80,8 @@ class RewardServiceImpl final : public v1::RewardService::Service {
   absl::Mutex scored_mu_;
   absl::flat_hash_map<std::string, std::pair<uint64_t, int64_t>> last_scored_ ABSL_GUARDED_BY(scored_mu_);
   metrics::Registry registry_;
+  std::array<metrics::Counter*, kNumScorePhases> score_seconds_{};  // By ScorePhase.
+  metrics::Counter* handler_seconds_ = nullptr;
 };
 
 }  // namespace imca::reward

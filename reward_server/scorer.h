@@ -1,6 +1,7 @@
 #ifndef IMCA_REWARD_SERVER_SCORER_H_
 #define IMCA_REWARD_SERVER_SCORER_H_
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -26,6 +27,25 @@ struct TransitionBatch {
   uint64_t actor = 0;                   // Hash of the sending actor's id (episode ids are per actor).
 };
 
+// Where a Score call's time goes (RewardStats.score_seconds, the metric
+// imca_reward_score_seconds_total; docs/metrics.md). Count and influence
+// kinds report no parts: their whole call is novelty.
+enum class ScorePhase {
+  kLockWait,        // Waiting for the novelty's lock (another call holds it).
+  kEncode,          // Building the kind's inputs from the batch (learned kinds).
+  kNovelty,         // The novelty of the taken transitions, and the rest of the kind's call.
+  kCounterfactual,  // imca: the novelties of the counterfactual joint actions (learned kinds).
+  kTrain,           // The learned models' optimiser step.
+  kCredit,          // The credit rule over the novelties (outside the lock).
+};
+inline constexpr int kNumScorePhases = 6;
+// "lock_wait", "encode", "novelty", "counterfactual", "train", "credit"
+// (defined with the other names, in credit.cc).
+std::string ScorePhaseName(ScorePhase phase);
+// Seconds by ScorePhase.
+using ScoreSeconds = std::array<double, kNumScorePhases>;
+inline double& SecondsOf(ScoreSeconds& seconds, ScorePhase phase) { return seconds[static_cast<int>(phase)]; }
+
 // Where a scorer writes its results; every array is preallocated by the caller.
 struct ScoreOutput {
   float* global_rewards = nullptr;  // [N], R_i
@@ -33,6 +53,7 @@ struct ScoreOutput {
   float* shares = nullptr;          // [N][n], p^a
   float* agent_rewards = nullptr;   // [N][n], r_i^a
   float* influences = nullptr;      // [N][n][n], c_{i->j}; only if the scorer ReturnsInfluences().
+  ScoreSeconds* seconds = nullptr;  // If set, the call's time by phase is added to it.
 };
 
 // A global intrinsic reward with credit assignment (CreditScorer, credit_scorer.h).

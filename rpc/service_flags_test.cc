@@ -54,11 +54,11 @@ TEST(ServiceFlagsTest, StatusFilesAreTheProtoInItsJsonMappingWithTheTime) {
   EXPECT_FALSE(std::getline(in, line)) << "one line";
   std::ifstream again(path);
   std::getline(again, line);
-  // The proto's names, every field (unrolls_resent at its default too),
-  // 64-bit integers as numbers, then the time.
+  // The proto's names, every field (unrolls_resent at its default too, the
+  // empty map as {}), 64-bit integers as numbers, then the time.
   EXPECT_THAT(line, StartsWith(R"({"actor_id":"actor-1","incarnation":18364758544493064720,)"
                                R"("unrolls_pushed":12,"unrolls_resent":0,"transitions_scored":0,)"
-                               R"("state":"acting","time":)"));
+                               R"("state":"acting","phase_seconds":{},"time":)"));
   const double time = std::stod(line.substr(line.rfind(':') + 1));
   EXPECT_GE(time, before - 0.001);
   EXPECT_LE(time, UnixSeconds() + 0.001);

@@ -36,12 +36,13 @@ ACTORS = 2
 STEPS = 1_000_000
 # Label names a series may carry: small fixed sets only (no agent, actor id
 # or episode: docs/metrics.md).
-ALLOWED_LABELS = {"service", "method", "code", "reason", "le"}
+ALLOWED_LABELS = {"service", "method", "code", "reason", "phase", "le"}
 # Families each job must export (the list, by the names we chose).
 REQUIRED = {
     "reward_server": ["imca_reward_transitions_scored_total", "imca_reward_requests_total",
                       "imca_reward_requests_rejected_total", "imca_reward_table_entries",
-                      "imca_reward_model_updates_total", "imca_rpc_server_handled_total",
+                      "imca_reward_model_updates_total", "imca_reward_score_seconds_total",
+                      "imca_reward_score_handler_seconds_total", "imca_rpc_server_handled_total",
                       "imca_rpc_server_handling_seconds", "process_resident_memory_bytes"],
     "learner": ["imca_learner_unrolls_received_total", "imca_learner_env_steps_total",
                 "imca_learner_iterations_total", "imca_learner_gradient_steps_total", "imca_learner_queue_depth",
@@ -50,7 +51,7 @@ REQUIRED = {
                 "imca_rpc_server_handled_total", "imca_rpc_server_handling_seconds",
                 "process_resident_memory_bytes"],
     "actor": ["imca_actor_env_steps_total", "imca_actor_unrolls_pushed_total", "imca_actor_reconnects_total",
-              "imca_actor_transitions_scored_total", "imca_rpc_client_handled_total",
+              "imca_actor_transitions_scored_total", "imca_actor_phase_seconds_total", "imca_rpc_client_handled_total",
               "imca_rpc_client_handling_seconds", "process_resident_memory_bytes"],
 }
 

@@ -29,6 +29,9 @@ struct NoveltyOutput {
   float* local = nullptr;
   // Kinds that ReturnsInfluences(): c_{i->j}, [N][n][n].
   float* influences = nullptr;
+  // If set, a kind adds the time of its parts (encode, counterfactual,
+  // train); the owner counts the rest of the call as novelty.
+  ScoreSeconds* seconds = nullptr;
 };
 
 // A global novelty bonus: the part of a reward kind that is not credit

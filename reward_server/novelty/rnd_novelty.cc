@@ -12,6 +12,7 @@
 #include "nn/mlp.h"
 #include "nn/running_moments.h"
 #include "nn/torch_status.h"
+#include "reward_server/novelty/counterfactual_mlp.h"
 #include "reward_server/novelty/joint_input.h"
 #include "reward_server/novelty/joint_key.h"
 
@@ -40,7 +41,8 @@ nn::RunningMoments MomentsFromTensor(const torch::Tensor& t, int64_t dim, const 
 struct Model {
   // Target and predictor draw their initial weights from streams 1 and 2 of `seed`.
   Model(int64_t in, const RndConfig& config, uint64_t seed)
-      : target(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 1))),
+      : counterfactual_threads(config.counterfactual_threads),
+        target(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 1))),
         predictor(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 2))),
         obs(in),
         ret(1),
@@ -67,9 +69,13 @@ struct Model {
   // `taken` [N][n] (int64) holds the slot actions of the rows. Normalisation
   // is per column, so a row differs from the taken one only in that block, and
   // the first layer's pre-activation is h(x) - W_s v(taken) + W_s v(u), with
-  // v(u) the normalised one-hot. Returns [N][n][A].
-  torch::Tensor CounterfactualNovelty(const torch::Tensor& x, const torch::Tensor& taken, int64_t action_offset,
-                                      int64_t n, int64_t A) {
+  // v(u) the normalised one-hot; the rest of both nets runs in
+  // CounterfactualNovelties on counterfactual_threads threads.
+  // `taken_novelty` [N] is Novelty(x).
+  // Returns [N][n][A].
+  torch::Tensor CounterfactualNovelty(const torch::Tensor& x, const torch::Tensor& taken,
+                                      const torch::Tensor& taken_novelty, int64_t action_offset, int64_t n,
+                                      int64_t A) {
     torch::NoGradGuard no_grad;
     const int64_t N = x.size(0);
     // v [n][A][A]: the normalised one-hot of action u in slot s's columns.
@@ -80,19 +86,39 @@ struct Model {
       const torch::Tensor std = torch::sqrt(obs.var().index({cols}).to(torch::kFloat32) + kEps).view({n, 1, A});
       v = ((v - mean) / std).clamp(-5.0, 5.0);
     }
-    const torch::Tensor slots = torch::arange(n, torch::kInt64).unsqueeze(0).expand({N, n});
-    auto embed = [&](nn::Mlp& net) {
+    // The first layer's pre-activation of the taken rows, h [N][H], and its
+    // response to slot s taking action u, c [n][A][H]; the tail's views.
+    struct FirstLayer {
+      torch::Tensor h, c;
+      MlpTail tail;
+    };
+    auto first_layer = [&](nn::Mlp& net) {
+      TORCH_CHECK(net->options().activation() == nn::Activation::kRelu && !net->options().layer_norm(),
+                  "rnd counterfactuals need a plain ReLU network");
       auto& layers = net->layers();
       const torch::Tensor& w = layers[0]->weight;  // [H][D]
-      // c [n][A][H]: the first layer's response to slot s taking action u.
-      const torch::Tensor c = torch::matmul(v, w.narrow(1, action_offset, n * A).reshape({-1, n, A}).permute({1, 2, 0}));
-      const torch::Tensor h = layers[0]->forward(x);                       // [N][H]
-      const torch::Tensor c_taken = c.index({slots, taken});                // [N][n][H]
-      torch::Tensor z = h.view({N, 1, 1, -1}) + c.unsqueeze(0) - c_taken.unsqueeze(2);  // [N][n][A][H]
-      for (size_t l = 1; l < layers.size(); ++l) z = layers[l]->forward(torch::relu(z));
-      return z;
+      FirstLayer f;
+      f.c = torch::matmul(v, w.narrow(1, action_offset, n * A).reshape({-1, n, A}).permute({1, 2, 0})).contiguous();
+      f.h = layers[0]->forward(x).contiguous();
+      for (size_t l = 1; l < layers.size(); ++l) {
+        const torch::Tensor& weight = layers[l]->weight;
+        TORCH_CHECK(weight.is_contiguous() && weight.scalar_type() == torch::kFloat32 &&
+                        layers[l]->bias.is_contiguous(),
+                    "rnd counterfactuals need contiguous float32 layers");
+        f.tail.layers.push_back({weight.data_ptr<float>(), layers[l]->bias.data_ptr<float>(),
+                                 static_cast<int>(weight.size(0)), static_cast<int>(weight.size(1))});
+      }
+      return f;
     };
-    return (embed(target) - embed(predictor)).pow(2).mean(-1);
+    const FirstLayer t = first_layer(target), p = first_layer(predictor);
+    const torch::Tensor taken_rows = taken.contiguous();
+    const torch::Tensor taken_raw = taken_novelty.contiguous();
+    torch::Tensor out = torch::empty({N, n, A}, torch::kFloat32);
+    CounterfactualNovelties(t.tail, p.tail, N, static_cast<int>(n), static_cast<int>(A),
+                            static_cast<int>(t.h.size(1)), t.h.data_ptr<float>(), p.h.data_ptr<float>(),
+                            t.c.data_ptr<float>(), p.c.data_ptr<float>(), taken_rows.data_ptr<int64_t>(),
+                            taken_raw.data_ptr<float>(), out.data_ptr<float>(), counterfactual_threads);
+    return out;
   }
 
   double RewardStd() const { return normalize ? std::sqrt(ret.scalar_var() + kEps) : 1.0; }
@@ -152,6 +178,7 @@ struct Model {
     return MomentsFromTensor(moments, dim, name + "_moments");
   }
 
+  int counterfactual_threads;
   nn::Mlp target;
   nn::Mlp predictor;
   std::unique_ptr<torch::optim::Adam> optimizer;
@@ -214,6 +241,7 @@ struct RndNovelty::Impl {
 void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const int64_t N = batch.size, D = encoder.joint_dim(), A = num_actions;
   const bool imca = out.contributions != nullptr;
+  PartClock clock(out.seconds);
   torch::Tensor inputs = torch::empty({N, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   std::vector<int> orders(N * n);
@@ -233,6 +261,7 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
       t[slot] = batch.actions[i * n + order[slot]];
     }
   }
+  clock.Lap(ScorePhase::kEncode);
   Model& model = *joint;
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor normalized = model.Normalize(inputs);
@@ -245,7 +274,11 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   const float* nov = scaled.data_ptr<float>();
   // Counterfactual novelties [N][n slots][A], scaled like the bonus (docs/credit.md).
   torch::Tensor cf;
-  if (imca) cf = (model.CounterfactualNovelty(normalized, taken, encoder.state_dim(), n, A) / std).contiguous();
+  if (imca) {
+    clock.Restart();
+    cf = (model.CounterfactualNovelty(normalized, taken, novelty, encoder.state_dim(), n, A) / std).contiguous();
+    clock.Lap(ScorePhase::kCounterfactual);
+  }
   for (int64_t i = 0; i < N; ++i) {
     out.joint[i] = nov[i];
     if (!imca) continue;
@@ -257,7 +290,11 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
       out.contributions[i * n + a] = static_cast<float>(nov[i] - baseline);
     }
   }
-  if (!dry_run) TrainJoint(batch, inputs);
+  if (!dry_run) {
+    clock.Restart();
+    TrainJoint(batch, inputs);
+    clock.Lap(ScorePhase::kTrain);
+  }
 }
 
 void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {
@@ -290,6 +327,7 @@ void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Ten
 void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_dim(with_id);
+  PartClock clock(out.seconds);
   torch::Tensor inputs = torch::empty({N * n, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   for (int64_t i = 0; i < N; ++i) {
@@ -298,6 +336,7 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
                           x + (i * n + a) * D);
     }
   }
+  clock.Lap(ScorePhase::kEncode);
   Model& model = *local;
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor novelty = model.Novelty(model.Normalize(inputs));
@@ -308,8 +347,10 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   const float* nov = scaled.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
   if (!dry_run) {
+    clock.Restart();
     model.Train(model.Normalize(inputs));
     ++updates;
+    clock.Lap(ScorePhase::kTrain);
   }
 }
 
@@ -317,6 +358,9 @@ absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenar
                                                              const ScorerConfig& config, const RndConfig& rnd) {
   IMCA_RETURN_IF_ERROR(CheckNetwork("rnd", rnd.hidden, rnd.learning_rate, rnd.gamma));
   if (rnd.output < 1) return absl::InvalidArgumentError("rnd output size must be >= 1");
+  if (rnd.counterfactual_threads < 1 || rnd.counterfactual_threads > 64) {
+    return absl::InvalidArgumentError("rnd counterfactual threads must be in [1, 64]");
+  }
   if (!(rnd.update_proportion > 0 && rnd.update_proportion <= 1)) {
     return absl::InvalidArgumentError("rnd update proportion must be in (0, 1]");
   }

@@ -19,6 +19,10 @@ struct RndConfig {
   double update_proportion = 1.0;        // Share of each batch's transitions the predictor trains on.
   double gamma = 0.99;                   // Discount of the intrinsic return whose running std divides N.
   bool normalize = true;                 // Input mean/std (clip +-5) and bonus normalisation.
+  // Threads of imca's counterfactual rows (the Score call's and one started
+  // per further thread); in a synchronous run the other cores idle while the
+  // actors wait for Score. Values do not depend on it.
+  int counterfactual_threads = 2;
 };
 
 // Random network distillation (paper eq. 6; docs/credit.md) on the encoded joint

@@ -177,6 +177,7 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
   const bool imca = out.contributions != nullptr;
   // Rows: S_t [N], S_{t+1} [N], then (imca) S_t with only agent a moved [N][n].
   const int64_t rows = N * (2 + (imca ? n : 0));
+  PartClock clock(out.seconds);
   torch::Tensor inputs = torch::empty({rows, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   int order[env::kMaxAgents];
@@ -196,6 +197,8 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
       encoder.EncodeState(moved.data(), order, x + (2 * N + i * n + a) * D);
     }
   }
+  clock.Lap(ScorePhase::kEncode);
+  // The counterfactual rows ride in the same pass (counted as novelty).
   SfModel& model = *joint;
   const torch::Tensor psi = model.Psi(inputs);
   const torch::Tensor psi_now = psi.narrow(0, 0, N);
@@ -218,12 +221,17 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
       out.agent_divisor[i * n + a] = std::sqrt(static_cast<double>(visits));
     }
   }
-  if (!dry_run) model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
+  if (!dry_run) {
+    clock.Restart();
+    model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
+    clock.Lap(ScorePhase::kTrain);
+  }
 }
 
 void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_state_dim(with_id), K = batch.state_size;
+  PartClock clock(out.seconds);
   torch::Tensor inputs = torch::empty({2 * N * n, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   for (int64_t i = 0; i < N; ++i) {
@@ -232,14 +240,17 @@ void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, c
       encoder.EncodeLocalState(batch.next_states + i * K, a, with_id, x + (N * n + i * n + a) * D);
     }
   }
+  clock.Lap(ScorePhase::kEncode);
   SfModel& model = *local;
   const torch::Tensor psi = model.Psi(inputs);
   const torch::Tensor novelty = (psi.narrow(0, N * n, N * n) - psi.narrow(0, 0, N * n)).pow(2).sum(1).contiguous();
   const float* nov = novelty.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
   if (!dry_run) {
+    clock.Restart();
     const torch::Tensor alive = Alive(batch).repeat_interleave(n);
     model.Train(inputs.narrow(0, 0, N * n), inputs.narrow(0, N * n, N * n), alive, sf.gamma);
+    clock.Lap(ScorePhase::kTrain);
   }
 }
 

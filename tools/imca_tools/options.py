@@ -51,6 +51,8 @@ OPTIONS = [
     ("--eta", {"reward_server": "eta"}, dict(type=float, help="eiti, edti: coefficient of the decentralised curiosity")),
     ("--beta-t", {"reward_server": "beta_t"}, dict(type=float, help="eiti: coefficient of the summed influence")),
     ("--temperature", {"reward_server": "temperature"}, dict(type=float, help="softmax temperature of the shares")),
+    ("--reward-threads", {"reward_server": "threads"},
+     dict(type=positive_int, help="rnd, sf: the reward server's LibTorch intra-op threads")),
     ("--snapshot-every", {"reward_server": "snapshot_every"},
      dict(type=int, help="reward server snapshot interval in s (count kinds also journal every increment)")),
     ("--seed", {"reward_server": "seed", "learner": "seed"},
