@@ -5,7 +5,8 @@
 #include <cstdio>
 #include <mutex>
 
-#include <torch/torch.h>
+// ATen's parallel header alone: torch/torch.h costs ~15 s to compile.
+#include <ATen/Parallel.h>
 
 namespace imca::nn {
 
@@ -15,7 +16,7 @@ void SetTorchThreads(int threads) {
   static std::atomic<bool> warned{false};
   threads = std::max(1, threads);
   std::call_once(once, [threads] {
-    torch::set_num_threads(threads);
+    at::set_num_threads(threads);
     set = threads;
   });
   if (set != threads && !warned.exchange(true)) {
