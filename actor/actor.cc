@@ -7,6 +7,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "base/enum_names.h"
+#include "base/lap.h"
 #include "base/status_macros.h"
 #include "protocol/unroll_check.h"
 #include "rpc/grpc_util.h"
@@ -80,21 +82,18 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
   truncated_.reset(new bool[envs]);
 }
 
-const char* Actor::PhaseName(Phase phase) {
-  switch (phase) {
-    case Phase::kActing:
-      return "acting";
-    case Phase::kScoring:
-      return "scoring";
-    case Phase::kPushing:
-      return "pushing";
-    case Phase::kChoosingPolicy:
-      return "choosing_policy";
-    case Phase::kDone:
-      break;
-  }
-  return "done";
-}
+namespace {
+
+// The timed phases' names (Actor::PhaseName).
+constexpr EnumName<Actor::Phase> kPhaseNames[] = {{Actor::Phase::kActing, "acting"},
+                                                  {Actor::Phase::kScoring, "scoring"},
+                                                  {Actor::Phase::kPushing, "pushing"},
+                                                  {Actor::Phase::kChoosingPolicy, "choosing_policy"}};
+static_assert(sizeof(kPhaseNames) / sizeof(kPhaseNames[0]) == Actor::kNumPhases);
+
+}  // namespace
+
+std::string Actor::PhaseName(Phase phase) { return NameOf(phase, kPhaseNames); }
 
 Actor::Counters Actor::RegisterMetrics(metrics::Registry* registry) {
   using metrics::Type;
@@ -316,7 +315,7 @@ absl::Status Actor::Run() {
   Phase phase = Phase::kActing;
   while (phase != Phase::kDone) {
     if (stop_.stopped()) break;
-    auto started = std::chrono::steady_clock::now();
+    Clock::time_point lap = Clock::now();
     const Phase timed = phase;
     switch (phase) {
       case Phase::kActing:
@@ -324,7 +323,7 @@ absl::Status Actor::Run() {
         // Waiting for one counts as choosing a policy.
         if (policies_.policy() == nullptr) {
           const bool got = policies_.Refresh(/*wait=*/true);
-          started = ChargePhase(Phase::kChoosingPolicy, started);
+          counters_.phase_seconds[static_cast<int>(Phase::kChoosingPolicy)]->Increment(Lap(lap));
           if (!got) {
             phase = Phase::kDone;  // The policy client's error() says why, if not stopped.
             break;
@@ -367,19 +366,13 @@ absl::Status Actor::Run() {
       case Phase::kDone:
         break;
     }
-    ChargePhase(timed, started);
+    counters_.phase_seconds[static_cast<int>(timed)]->Increment(Lap(lap));
   }
   sender_.Close();
   if (trace_.has_value()) trace_->Flush();
   WriteStatus("done", /*force=*/true);
   // OK, unless something this actor cannot retry stopped it.
   return !error_.ok() ? error_ : policies_.error();
-}
-
-std::chrono::steady_clock::time_point Actor::ChargePhase(Phase phase, std::chrono::steady_clock::time_point since) {
-  const auto now = std::chrono::steady_clock::now();
-  counters_.phase_seconds[static_cast<int>(phase)]->Increment(std::chrono::duration<double>(now - since).count());
-  return now;
 }
 
 void Actor::WriteStatus(const char* state, bool force) {

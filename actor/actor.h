@@ -125,8 +125,8 @@ class Actor {
     kDone,
   };
   static constexpr int kNumPhases = static_cast<int>(Phase::kDone);  // The timed ones.
-  // "acting", "scoring", "pushing", "choosing_policy".
-  static const char* PhaseName(Phase phase);
+  // "acting", "scoring", "pushing", "choosing_policy" ("" for kDone).
+  static std::string PhaseName(Phase phase);
 
   int64_t unrolls_pushed() const { return unrolls_pushed_; }
   // Pushes sent again after a lost stream.
@@ -159,8 +159,6 @@ class Actor {
   Phase AfterFailure(const absl::Status& status, Phase retry, const char* peer, Backoff* backoff);
   // The phase after an unroll was delivered.
   Phase AfterDelivery(int64_t version_acted);
-  // Adds the time from `since` to now to `phase`'s seconds; returns now.
-  std::chrono::steady_clock::time_point ChargePhase(Phase phase, std::chrono::steady_clock::time_point since);
   // Writes config_.status_file if status_period has passed since the last
   // write (or `force`).
   void WriteStatus(const char* state, bool force);

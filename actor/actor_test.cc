@@ -5,12 +5,19 @@
 // unroll exactly once to training and count every answered Score once.
 #include "actor/actor.h"
 
+#include <unistd.h>
+
 #include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <memory>
+#include <string>
 #include <thread>
 
 #include "env/env.h"
+#include "google/protobuf/util/json_util.h"
 #include "gtest/gtest.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
@@ -201,10 +208,36 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
   config.eval_envs = 2;
   config.rpc_timeout = std::chrono::milliseconds(2000);
   config.ack_timeout = std::chrono::milliseconds(300);
+  config.status_file = (std::filesystem::temp_directory_path() /
+                        ("actor_status_" + std::to_string(getpid()) + ".json")).string();
   actor::Actor actor(scenario->get(), config, MakeChannel("127.0.0.1:" + std::to_string(learner_port)),
                      MakeChannel("127.0.0.1:" + std::to_string(reward_port)));
+  const auto started = std::chrono::steady_clock::now();
   EXPECT_TRUE(actor.Run().ok());
+  const double ran = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   trainer.join();
+
+  // The final status has the time of every phase of the loop, retries
+  // included, and together no more than Run() took.
+  v1::ActorStatus written;
+  {
+    std::ifstream in(config.status_file);
+    std::string line;
+    ASSERT_TRUE(std::getline(in, line));
+    google::protobuf::util::JsonParseOptions options;
+    options.ignore_unknown_fields = true;  // "time".
+    ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(line, &written, options).ok()) << line;
+  }
+  std::filesystem::remove(config.status_file);
+  EXPECT_EQ(written.state(), "done");
+  ASSERT_EQ(written.phase_seconds_size(), actor::Actor::kNumPhases);
+  double phases = 0;
+  for (const char* phase : {"acting", "scoring", "pushing", "choosing_policy"}) {
+    ASSERT_TRUE(written.phase_seconds().contains(phase)) << phase;
+    EXPECT_GT(written.phase_seconds().at(phase), 0.0) << phase;
+    phases += written.phase_seconds().at(phase);
+  }
+  EXPECT_LE(phases, ran);
 
   const v1::LearnerStatus status = (*learner)->Status();
   EXPECT_TRUE(status.done());

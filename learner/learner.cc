@@ -11,10 +11,10 @@
 #include "absl/strings/str_format.h"
 #include "base/atomic_file.h"
 #include "base/enum_names.h"
+#include "base/lap.h"
 #include "base/status_macros.h"
 #include "learner/algorithms/maddpg/maddpg.h"
 #include "learner/algorithms/mappo/mappo.h"
-#include "learner/lap.h"
 #include "nn/threads.h"
 #include "protocol/unroll_check.h"
 

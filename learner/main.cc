@@ -13,6 +13,7 @@
 #include "learner/algorithms/mappo/ppo_trainer.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
+#include "nn/blas_kernels.h"
 #include "protocol/unroll_check.h"
 #include "rpc/grpc_util.h"
 #include "rpc/metrics_flags.h"
@@ -365,6 +366,7 @@ absl::Status TrainWhileServing(imca::learner::Learner* learner, const std::strin
 }  // namespace
 
 int main(int argc, char** argv) {
+  imca::nn::UseTheCpusBlasKernels(argv);  // First: it may re-execute the binary.
   absl::SetProgramUsageMessage("IMCA learner: multi-agent PPO or MADDPG over gRPC");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;

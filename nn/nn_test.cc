@@ -1,10 +1,12 @@
 #include <torch/torch.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 
 #include "gtest/gtest.h"
 #include "nn/archive.h"
+#include "nn/blas_kernels.h"
 #include "nn/mlp.h"
 #include "nn/running_moments.h"
 #include "nn/torch_status.h"
@@ -156,6 +158,33 @@ TEST(ArchiveTest, TagMismatchAndMissingFileAreTypedErrors) {
   EXPECT_EQ(LoadArchive(path + ".none", "tag-a", [](torch::serialize::InputArchive&) {}).code(),
             absl::StatusCode::kNotFound);
   std::filesystem::remove(path);
+}
+
+
+TEST(BlasKernelsTest, OlderKernelsThanTheCpuRunsAreReplaced) {
+  const CpuFeatures avx512{.avx2_fma = true, .avx512 = true}, avx2{.avx2_fma = true}, sse{};
+  // OpenBLAS 0.3.21's fallback on a CPU model it does not know.
+  EXPECT_EQ(BetterCoreType("Prescott", avx512), "SkylakeX");
+  EXPECT_EQ(BetterCoreType("Prescott", avx2), "Haswell");
+  EXPECT_EQ(BetterCoreType("SANDYBRIDGE", avx2), "Haswell");
+  EXPECT_EQ(BetterCoreType("Haswell", avx512), "SkylakeX");
+  // Kernels that fit the CPU stay, and so does anything on an older CPU.
+  EXPECT_EQ(BetterCoreType("SkylakeX", avx512), "");
+  EXPECT_EQ(BetterCoreType("cooperlake", avx512), "");
+  EXPECT_EQ(BetterCoreType("Haswell", avx2), "");
+  EXPECT_EQ(BetterCoreType("Zen", avx2), "");
+  EXPECT_EQ(BetterCoreType("Prescott", sse), "");
+  EXPECT_EQ(BetterCoreType("", sse), "");
+}
+
+TEST(BlasKernelsTest, ASetCoreTypeIsLeftAlone) {
+  // The variable set (by a user or the restart): returns, never re-executes.
+  ASSERT_EQ(setenv("OPENBLAS_CORETYPE", "Prescott", 1), 0);
+  char name[] = "nn_test";
+  char* argv[] = {name, nullptr};
+  UseTheCpusBlasKernels(argv);
+  EXPECT_STREQ(std::getenv("OPENBLAS_CORETYPE"), "Prescott");
+  unsetenv("OPENBLAS_CORETYPE");
 }
 
 }  // namespace

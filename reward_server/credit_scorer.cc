@@ -1,54 +1,29 @@
 #include "reward_server/credit_scorer.h"
 
 #include <algorithm>
-#include <chrono>
 #include <vector>
 
+#include "base/lap.h"
 #include "base/status_macros.h"
 
 namespace imca::reward {
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
-
-// Adds its lifetime to the credit phase of `seconds` (if set).
-class CreditTimer {
- public:
-  explicit CreditTimer(ScoreSeconds* seconds) : seconds_(seconds), start_(Clock::now()) {}
-  ~CreditTimer() {
-    if (seconds_ != nullptr) SecondsOf(*seconds_, ScorePhase::kCredit) += SecondsSince(start_);
-  }
-
- private:
-  ScoreSeconds* const seconds_;
-  const Clock::time_point start_;
-};
-
-}  // namespace
 
 CreditScorer::CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n)
     : returns_influences_(novelty->ReturnsInfluences()), novelty_(std::move(novelty)), config_(config), n_(n) {}
 
 absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, NoveltyOutput out,
-                                   ScoreSeconds* seconds) {
-  if (seconds == nullptr) {
-    absl::MutexLock lock(&mu_);
-    return novelty_->Compute(batch, dry_run, out);
-  }
-  // The kind adds its parts to `parts`; the rest of its call is novelty.
-  ScoreSeconds parts{};
-  out.seconds = &parts;
-  const Clock::time_point waiting = Clock::now();
+                                   ScoreSeconds* parts) {
+  Clock::time_point lap = Clock::now();
   absl::MutexLock lock(&mu_);
-  const Clock::time_point held = Clock::now();
+  SecondsOf(*parts, ScorePhase::kLockWait) += Lap(lap);
+  ScoreSeconds kind{};  // The parts the kind reports.
+  out.seconds = &kind;
   const absl::Status status = novelty_->Compute(batch, dry_run, out);
-  double accounted = 0;
-  for (double part : parts) accounted += part;
-  SecondsOf(parts, ScorePhase::kLockWait) = std::chrono::duration<double>(held - waiting).count();
-  SecondsOf(parts, ScorePhase::kNovelty) += std::max(0.0, SecondsSince(held) - accounted);
-  for (int p = 0; p < kNumScorePhases; ++p) (*seconds)[p] += parts[p];
+  double reported = 0;
+  for (double part : kind) reported += part;
+  // What the kind did not report of its call is novelty.
+  SecondsOf(kind, ScorePhase::kNovelty) += std::max(0.0, Lap(lap) - reported);
+  for (int p = 0; p < kNumScorePhases; ++p) (*parts)[p] += kind[p];
   return status;
 }
 
@@ -83,6 +58,21 @@ std::optional<int64_t> CreditScorer::DurableTransitions() const {
 }
 
 absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) {
+  Clock::time_point lap = Clock::now();
+  ScoreSeconds parts{};
+  const absl::Status status = ApplyCredit(batch, dry_run, out, &parts);
+  // The rest of the call is the credit rule's.
+  double timed = 0;
+  for (double part : parts) timed += part;
+  SecondsOf(parts, ScorePhase::kCredit) = std::max(0.0, Lap(lap) - timed);
+  if (out.seconds != nullptr) {
+    for (int p = 0; p < kNumScorePhases; ++p) (*out.seconds)[p] += parts[p];
+  }
+  return status;
+}
+
+absl::Status CreditScorer::ApplyCredit(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out,
+                                       ScoreSeconds* parts) {
   const int n = n_;
   const int64_t N = batch.size;
   const float beta = static_cast<float>(config_.beta);
@@ -100,8 +90,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   if (config_.credit == Credit::kIndependent) {
     // The kind's local novelties land in contributions, reported as N_a.
     novelty.local = out.contributions;
-    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, out.seconds));
-    const CreditTimer timer(out.seconds);
+    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, parts));
     for (int64_t i = 0; i < N; ++i) {
       const float* local = out.contributions + i * n;
       float* rewards = out.agent_rewards + i * n;
@@ -116,8 +105,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   std::vector<float> joint(N);
   novelty.joint = joint.data();
   if (config_.credit == Credit::kShared) {
-    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, out.seconds));
-    const CreditTimer timer(out.seconds);
+    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, parts));
     for (int64_t i = 0; i < N; ++i) {
       out.global_rewards[i] = beta * joint[i];
       for (int a = 0; a < n; ++a) {
@@ -133,8 +121,7 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
   std::vector<double> divisor(N * n, 1.0);
   novelty.contributions = out.contributions;
   novelty.agent_divisor = divisor.data();
-  IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, out.seconds));
-  const CreditTimer timer(out.seconds);
+  IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, parts));
   for (int64_t i = 0; i < N; ++i) {
     out.global_rewards[i] = beta * joint[i];
     float* shares = out.shares + i * n;

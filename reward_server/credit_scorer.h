@@ -47,9 +47,12 @@ class CreditScorer : public Scorer {
   Novelty& novelty() ABSL_NO_THREAD_SAFETY_ANALYSIS { return *novelty_; }
 
  private:
-  // The novelty's call under the lock; with `seconds`, adds the lock wait,
-  // the kind's parts and the rest of its call (novelty) to it.
-  absl::Status Compute(const TransitionBatch& batch, bool dry_run, NoveltyOutput out, ScoreSeconds* seconds)
+  // Score without the credit rule's time: the credit rule over Compute.
+  absl::Status ApplyCredit(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out,
+                           ScoreSeconds* parts);
+  // The novelty's call under the lock; adds the lock wait, the kind's parts
+  // and the rest of its call (novelty) to *parts.
+  absl::Status Compute(const TransitionBatch& batch, bool dry_run, NoveltyOutput out, ScoreSeconds* parts)
       ABSL_LOCKS_EXCLUDED(mu_);
 
   mutable absl::Mutex save_mu_ ABSL_ACQUIRED_BEFORE(mu_);  // Serialises snapshot writes.

@@ -12,6 +12,7 @@
 #include "base/json.h"
 #include "env/env.h"
 #include "env/scenario_flags.h"
+#include "nn/blas_kernels.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 #include "rpc/grpc_util.h"
@@ -127,6 +128,7 @@ int List(const imca::env::Scenario& scenario) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  imca::nn::UseTheCpusBlasKernels(argv);  // First: it may re-execute the binary.
   absl::SetProgramUsageMessage("IMCA reward server: per-agent credited intrinsic rewards over gRPC");
   absl::ParseCommandLine(argc, argv);
   using namespace imca;

@@ -278,6 +278,65 @@ TEST(InfluenceServiceTest, EdtiReturnsInfluencesEitiDoesNot) {
   }
 }
 
+// The answered calls' time by phase (docs/metrics.md): a learned kind
+// reports its encode and train parts and, under imca, its counterfactual
+// rows; a count kind's whole call is novelty; no call has a counterfactual
+// part without imca; and the phases never add up to more than the handler.
+TEST(ScoreTimelineTest, PhasesAreReportedByWhatRanAndFitInTheHandler) {
+  auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
+  ASSERT_TRUE(scenario.ok()) << scenario.status();
+  struct Run {
+    std::string kind;
+    Credit credit;
+  };
+  for (const Run& run : {Run{"rnd", Credit::kImca}, Run{"rnd", Credit::kShared}, Run{"count", Credit::kImca}}) {
+    const std::string label = run.kind + " " + CreditName(run.credit);
+    ScorerConfig config;
+    config.credit = run.credit;
+    auto scorer = MakeScorer(run.kind, **scenario, config);
+    ASSERT_TRUE(scorer.ok()) << scorer.status();
+    RewardServiceImpl service(scenario->get(), scorer->get(), run.kind, config, "");
+    int port = 0;
+    auto server = StartServer("127.0.0.1:0", {&service}, &port);
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto stub = v1::RewardService::NewStub(MakeChannel("127.0.0.1:" + std::to_string(port)));
+    for (int call = 0; call < 3; ++call) {
+      v1::ScoreRequest request;
+      *request.mutable_unroll() = testing::RandomUnroll(**scenario, 32, 8, 20 + call);
+      v1::ScoreResponse response;
+      grpc::ClientContext context;
+      context.set_deadline(DeadlineIn(std::chrono::seconds(30)));
+      ASSERT_TRUE(stub->Score(&context, request, &response).ok()) << label;
+    }
+    const v1::RewardStats stats = service.Stats();
+    const auto& seconds = stats.score_seconds();
+    ASSERT_EQ(seconds.size(), kNumScorePhases) << label;
+    double sum = 0;
+    for (int p = 0; p < kNumScorePhases; ++p) {
+      const std::string phase = ScorePhaseName(static_cast<ScorePhase>(p));
+      ASSERT_TRUE(seconds.contains(phase)) << label << " " << phase;
+      EXPECT_GE(seconds.at(phase), 0.0) << label << " " << phase;
+      sum += seconds.at(phase);
+    }
+    EXPECT_GT(seconds.at("novelty"), 0.0) << label;
+    EXPECT_GT(stats.handler_seconds(), 0.0) << label;
+    EXPECT_LE(sum, stats.handler_seconds()) << label;
+    if (run.kind == "rnd") {
+      EXPECT_GT(seconds.at("encode"), 0.0) << label;
+      EXPECT_GT(seconds.at("train"), 0.0) << label;
+    } else {
+      EXPECT_EQ(seconds.at("encode"), 0.0) << label << ": a count kind reports no parts";
+      EXPECT_EQ(seconds.at("train"), 0.0) << label;
+    }
+    if (run.kind == "rnd" && run.credit == Credit::kImca) {
+      EXPECT_GT(seconds.at("counterfactual"), 0.0) << label;
+    } else {
+      EXPECT_EQ(seconds.at("counterfactual"), 0.0) << label;
+    }
+    (*server)->Shutdown();
+  }
+}
+
 // A server that dies without its final snapshot (the scorer is dropped, as
 // by kill -9: the journal's writes are all it leaves) comes back with every
 // answered Score counted, for each kind with count tables.

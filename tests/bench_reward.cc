@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "env/env.h"
+#include "nn/blas_kernels.h"
 #include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
@@ -77,6 +78,7 @@ double Throughput(const std::string& kind, const env::Scenario& scenario, reward
 }  // namespace imca
 
 int main(int argc, char** argv) {
+  imca::nn::UseTheCpusBlasKernels(argv);  // First: it may re-execute the binary.
   using namespace imca;
   const int rounds = argc > 1 ? std::max(3, std::atoi(argv[1])) : 5;
   if (argc != 2 && argc != 4 && argc != 1) {

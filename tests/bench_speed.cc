@@ -26,6 +26,7 @@
 #include "env/env.h"
 #include "env/vec_env.h"
 #include "learner/learner.h"
+#include "nn/blas_kernels.h"
 #include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
@@ -216,6 +217,7 @@ double BenchLearner(const env::Scenario& scenario, int rounds, int threads, cons
 }  // namespace imca
 
 int main(int argc, char** argv) {
+  imca::nn::UseTheCpusBlasKernels(argv);  // First: it may re-execute the binary.
   using namespace imca;
   const int rounds = argc > 1 ? std::max(3, std::atoi(argv[1])) : 7;
   auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());

@@ -17,7 +17,7 @@ import unittest
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 LIST = os.path.join(ROOT, "deploy", "packages.txt")
-TAGS = ("build", "runtime", "host", "deploy", "prometheus")
+TAGS = ("build", "runtime", "host", "test", "deploy", "prometheus")
 # What the image ships (deploy/Dockerfile's runtime stage copies these).
 SHIPPED = ("reward_server", "learner", "actor", "imca_env", "imca_health")
 # In every debian:12, so never listed: the C library, the C++ runtime, zlib.
@@ -171,10 +171,10 @@ class PackageListTest(unittest.TestCase):
                              f"./imca: apt-get install{args}")
 
     def test_every_package_of_imca_is_installed_here(self):
-        # ./imca build installed these: a misspelt or vanished name fails.
-        for tag in ("build", "runtime", "host"):
+        # ./imca test installed these: a misspelt or vanished name fails.
+        for tag in ("build", "runtime", "host", "test"):
             missing = sorted(tagged(self.packages, tag) - set(self.db))
-            self.assertEqual(missing, [], f"tag {tag}: not installed (./imca build installs them)")
+            self.assertEqual(missing, [], f"tag {tag}: not installed (./imca test installs them)")
 
     def test_dockerfiles_install_from_the_list_only(self):
         for path, stages in DOCKERFILES.items():

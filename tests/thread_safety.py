@@ -51,14 +51,19 @@ def clang_command(entry):
     args = entry["arguments"] if "arguments" in entry else shlex.split(entry["command"])
     out = ["clang++"]
     skip = False
-    for arg in args[1:]:
+    for i, arg in enumerate(args[1:], 1):
         if skip:
             skip = False
             continue
         if arg in ("-o", "-c", "-MF", "-MT", "-MQ"):
             skip = arg != "-c"
             continue
-        if arg in ("-MD", "-MMD"):
+        if arg in ("-MD", "-MMD", "-Winvalid-pch"):
+            continue
+        # GCC's precompiled header (CMake's cmake_pch.hxx, a .gch beside it)
+        # is not clang's; every unit includes what it uses anyway.
+        if arg == "-include" and i + 1 < len(args) and "cmake_pch" in args[i + 1]:
+            skip = True
             continue
         out.append(arg)
     return out + FLAGS

@@ -1,7 +1,9 @@
 #include "reward_server/novelty/counterfactual_mlp.h"
 
 #include <algorithm>
+#include <atomic>
 #include <exception>
+#include <functional>
 #include <system_error>
 #include <thread>
 #include <utility>
@@ -33,17 +35,18 @@ Matrix* Forward(const MlpTail& tail, Matrix* x, Matrix* y) {
   return x;
 }
 
-// CounterfactualNovelties over the blocks [first_block, end_block) of
-// `per_block` transitions each (the last may be short), with its own buffers.
+// CounterfactualNovelties over blocks of `per_block` transitions each (the
+// last may be short), taken one at a time from *next until `blocks`, with
+// its own buffers.
 void NoveltiesOfBlocks(const MlpTail& target, const MlpTail& predictor, int64_t N, int64_t per_block,
-                       int64_t first_block, int64_t end_block, int n, int A, int H, const float* h_target,
+                       std::atomic<int64_t>* next, int64_t blocks, int n, int A, int H, const float* h_target,
                        const float* h_predictor, const float* c_target, const float* c_predictor,
                        const int64_t* taken, float* out) {
   const int64_t per = int64_t{n} * (A - 1);  // Counterfactual rows of one transition.
   Matrix zt(per_block * per, H), zp(per_block * per, H), yt, yp;
   Eigen::VectorXf novelty(per_block * per);
   std::vector<int64_t> index(per_block * per);  // Row -> its place in out.
-  for (int64_t b = first_block; b < end_block; ++b) {
+  for (int64_t b = next->fetch_add(1); b < blocks; b = next->fetch_add(1)) {
     const int64_t first = b * per_block, last = std::min(N, first + per_block);
     const int64_t rows = (last - first) * per;
     zt.resize(rows, H);  // Forward reshapes the buffers it passes through.
@@ -74,36 +77,46 @@ void NoveltiesOfBlocks(const MlpTail& target, const MlpTail& predictor, int64_t 
 void CounterfactualNovelties(const MlpTail& target, const MlpTail& predictor, int64_t N, int n, int A, int H,
                              const float* h_target, const float* h_predictor, const float* c_target,
                              const float* c_predictor, const int64_t* taken, const float* taken_novelty,
-                             float* out, int threads) {
+                             float* out, int threads, const std::function<void()>& alongside) {
   for (int64_t i = 0; i < N; ++i) {
     for (int s = 0; s < n; ++s) out[(i * n + s) * A + taken[i * n + s]] = taken_novelty[i];
   }
-  if (A < 2 || n < 1 || N == 0) return;
+  const bool rows = A >= 2 && n >= 1 && N > 0;
   // One grid of blocks from transition 0 whatever the threads, so that every
   // block holds the same rows (a GEMM's rounding may depend on a row's place
-  // in its block); each thread takes a contiguous run of whole blocks.
-  const int64_t per_block = std::max<int64_t>(1, kBlockRows / (int64_t{n} * (A - 1)));
-  const int64_t blocks = (N + per_block - 1) / per_block;
-  const int64_t parts = std::clamp<int64_t>(threads, 1, blocks);
-  std::vector<std::exception_ptr> errors(parts);
-  auto part = [&](int64_t p) {
+  // in its block); the threads take whole blocks as they come free.
+  const int64_t per_block = std::max<int64_t>(1, kBlockRows / (int64_t{n} * std::max(A - 1, 1)));
+  const int64_t blocks = rows ? (N + per_block - 1) / per_block : 0;
+  std::atomic<int64_t> next{0};
+  const int helpers = static_cast<int>(std::clamp<int64_t>(threads - 1, 0, blocks));
+  std::vector<std::exception_ptr> errors(helpers + 2);  // helpers, the caller's blocks, alongside.
+  auto work = [&](int p) {
     try {
-      NoveltiesOfBlocks(target, predictor, N, per_block, blocks * p / parts, blocks * (p + 1) / parts, n, A, H,
-                        h_target, h_predictor, c_target, c_predictor, taken, out);
+      NoveltiesOfBlocks(target, predictor, N, per_block, &next, blocks, n, A, H, h_target, h_predictor, c_target,
+                        c_predictor, taken, out);
     } catch (...) {
       errors[p] = std::current_exception();
+      next = blocks;  // The others stop at their next block.
     }
   };
   std::vector<std::thread> workers;
-  int64_t p = 1;
   try {
-    for (; p < parts; ++p) workers.emplace_back(part, p);
+    for (int p = 0; p < helpers; ++p) workers.emplace_back(work, p);
   } catch (const std::system_error&) {
-    // No thread to be had: the caller does the rest.
+    // No more threads to be had: the caller takes the rest.
   }
-  for (int64_t rest = p; rest < parts; ++rest) part(rest);
-  part(0);
+  if (alongside) {
+    try {
+      alongside();
+    } catch (...) {
+      errors[helpers + 1] = std::current_exception();
+      next = blocks;
+    }
+  }
+  work(helpers);
   for (std::thread& worker : workers) worker.join();
+  // The alongside's error first: it is the caller's own work.
+  if (errors[helpers + 1]) std::rethrow_exception(errors[helpers + 1]);
   for (const std::exception_ptr& error : errors) {
     if (error) std::rethrow_exception(error);
   }

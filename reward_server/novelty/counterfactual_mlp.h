@@ -2,6 +2,7 @@
 #define IMCA_REWARD_SERVER_NOVELTY_COUNTERFACTUAL_MLP_H_
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace imca::reward {
@@ -36,13 +37,20 @@ struct MlpTail {
 // arithmetic (docs/benchmarks.md, "Credit's cost end to end"). With
 // `threads` > 1 the blocks are shared out between that many threads (the
 // caller's and threads - 1 started for the call); the blocks, and so the
-// values, are the same for any `threads`. An exception of any thread is
-// rethrown after all have finished. Thread-compatible: concurrent calls on
-// distinct outputs are safe.
+// values, are the same for any `threads`.
+//
+// `alongside`, if set, runs once on the caller's thread while the helpers
+// take their first blocks; the caller then joins them on the blocks left.
+// It is other work of the caller's that needs none of the outputs (the
+// predictor's training step): it must not write any input of this call, so
+// tails it would change must be copies. An exception of `alongside` is
+// rethrown first, else one of any thread, after all have finished; `out` is
+// then unspecified. Blocks the calling thread. Thread-compatible: concurrent
+// calls on distinct outputs are safe.
 void CounterfactualNovelties(const MlpTail& target, const MlpTail& predictor, int64_t N, int n, int A, int H,
                              const float* h_target, const float* h_predictor, const float* c_target,
                              const float* c_predictor, const int64_t* taken, const float* taken_novelty,
-                             float* out, int threads = 1);
+                             float* out, int threads = 1, const std::function<void()>& alongside = {});
 
 }  // namespace imca::reward
 

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <random>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -115,15 +117,41 @@ TEST(CounterfactualMlpSplitTest, ValuesDoNotDependOnTheThreads) {
   const std::vector<float> taken_novelty = random(N);
   std::vector<int64_t> taken(N * n);
   for (int64_t& t : taken) t = rng() % A;
-  auto run = [&](int threads) {
+  int alongside_runs = 0;
+  auto run = [&](int threads, bool alongside) {
     std::vector<float> out(N * n * A);
+    std::function<void()> work;
+    if (alongside) work = [&] { ++alongside_runs; };
     CounterfactualNovelties(target.view, predictor.view, N, n, A, H, ht.data(), hp.data(), ct.data(), cp.data(),
-                            taken.data(), taken_novelty.data(), out.data(), threads);
+                            taken.data(), taken_novelty.data(), out.data(), threads, work);
     return out;
   };
-  const std::vector<float> one = run(1);
-  EXPECT_EQ(one, run(2));
-  EXPECT_EQ(one, run(3));
+  const std::vector<float> one = run(1, false);
+  EXPECT_EQ(one, run(2, false));
+  EXPECT_EQ(one, run(3, false));
+  // Work alongside changes nothing and runs once a call, at any threads.
+  EXPECT_EQ(one, run(1, true));
+  EXPECT_EQ(one, run(2, true));
+  EXPECT_EQ(one, run(3, true));
+  EXPECT_EQ(alongside_runs, 3);
+}
+
+TEST(CounterfactualMlpSplitTest, AnErrorAlongsideIsRethrownAfterTheThreadsEnd) {
+  std::mt19937 rng(5);
+  const int64_t N = 40;
+  const int n = 2, A = 3, H = 8;
+  const Tail target = RandomTail({H, 8, 4}, &rng), predictor = RandomTail({H, 8, 4}, &rng);
+  const std::vector<float> ht(N * H, 0.5f), hp(N * H, -0.5f), ct(n * A * H, 0.1f), cp(n * A * H, 0.2f);
+  const std::vector<float> taken_novelty(N, 1.0f);
+  const std::vector<int64_t> taken(N * n, 1);
+  std::vector<float> out(N * n * A);
+  for (int threads : {1, 2}) {
+    EXPECT_THROW(CounterfactualNovelties(target.view, predictor.view, N, n, A, H, ht.data(), hp.data(), ct.data(),
+                                         cp.data(), taken.data(), taken_novelty.data(), out.data(), threads,
+                                         [] { throw std::runtime_error("alongside"); }),
+                 std::runtime_error)
+        << "threads=" << threads;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(

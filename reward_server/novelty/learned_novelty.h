@@ -1,7 +1,6 @@
 #ifndef IMCA_REWARD_SERVER_NOVELTY_LEARNED_NOVELTY_H_
 #define IMCA_REWARD_SERVER_NOVELTY_LEARNED_NOVELTY_H_
 
-#include <chrono>
 #include <memory>
 #include <string>
 #include <vector>
@@ -13,23 +12,6 @@
 #include "reward_server/novelty/novelty.h"
 
 namespace imca::reward {
-
-// Times a kind's parts into NoveltyOutput::seconds (nothing if it is null):
-// Lap(phase) adds the time since the last Lap or Restart to `phase`.
-class PartClock {
- public:
-  explicit PartClock(ScoreSeconds* seconds) : seconds_(seconds), start_(std::chrono::steady_clock::now()) {}
-  void Restart() { start_ = std::chrono::steady_clock::now(); }
-  void Lap(ScorePhase phase) {
-    const auto now = std::chrono::steady_clock::now();
-    if (seconds_ != nullptr) SecondsOf(*seconds_, phase) += std::chrono::duration<double>(now - start_).count();
-    start_ = now;
-  }
-
- private:
-  ScoreSeconds* const seconds_;
-  std::chrono::steady_clock::time_point start_;
-};
 
 // The scaffold of the learned novelties (RND, SF): a kind holds a joint model
 // (shared and imca credit) or a local one over each agent's own input

@@ -29,10 +29,15 @@ struct NoveltyOutput {
   float* local = nullptr;
   // Kinds that ReturnsInfluences(): c_{i->j}, [N][n][n].
   float* influences = nullptr;
-  // If set, a kind adds the time of its parts (encode, counterfactual,
-  // train); the owner counts the rest of the call as novelty.
+  // Where a kind adds the time of its parts (encode, counterfactual, train;
+  // AddPart); the owner counts the rest of the call as novelty.
   ScoreSeconds* seconds = nullptr;
 };
+
+// Adds `seconds` to `phase` of out.seconds (if set).
+inline void AddPart(const NoveltyOutput& out, ScorePhase phase, double seconds) {
+  if (out.seconds != nullptr) SecondsOf(*out.seconds, phase) += seconds;
+}
 
 // A global novelty bonus: the part of a reward kind that is not credit
 // assignment. CreditScorer calls it without knowing its kind, as Reverb's

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
+#include "base/lap.h"
 #include "base/rng.h"
 #include "base/status_macros.h"
 #include "nn/archive.h"
@@ -41,8 +43,7 @@ nn::RunningMoments MomentsFromTensor(const torch::Tensor& t, int64_t dim, const 
 struct Model {
   // Target and predictor draw their initial weights from streams 1 and 2 of `seed`.
   Model(int64_t in, const RndConfig& config, uint64_t seed)
-      : counterfactual_threads(config.counterfactual_threads),
-        target(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 1))),
+      : target(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 1))),
         predictor(nn::MlpOptions(Sizes(in, config)).seed(nn::SubSeed(seed, 2))),
         obs(in),
         ret(1),
@@ -57,27 +58,39 @@ struct Model {
     return ((x - obs.mean().to(torch::kFloat32)) / torch::sqrt(obs.var().to(torch::kFloat32) + kEps)).clamp(-5.0, 5.0);
   }
 
-  // Raw novelty of each normalised row.
-  torch::Tensor Novelty(const torch::Tensor& x) {
+  // A forward pass of both nets over normalised rows: the raw novelty of
+  // each row and each net's first-layer pre-activation (the counterfactuals
+  // start from it).
+  struct Pass {
+    torch::Tensor novelty;               // [N]
+    torch::Tensor h_target, h_predictor;  // [N][H]
+  };
+  Pass Novelty(const torch::Tensor& x) {
     torch::NoGradGuard no_grad;
-    return (target->forward(x) - predictor->forward(x)).pow(2).mean(1);
+    Pass pass;
+    pass.h_target = target->layers()[0]->forward(x).contiguous();
+    pass.h_predictor = predictor->layers()[0]->forward(x).contiguous();
+    pass.novelty =
+        (target->ForwardFrom(pass.h_target, 0) - predictor->ForwardFrom(pass.h_predictor, 0)).pow(2).mean(1);
+    return pass;
   }
 
-  // Novelty of every counterfactual row without building it. Row (i, s, u) is
-  // the taken row i (normalised, x [N][D]) with the action block of slot s
-  // set to action u; the blocks start at `action_offset`, A columns each, and
-  // `taken` [N][n] (int64) holds the slot actions of the rows. Normalisation
-  // is per column, so a row differs from the taken one only in that block, and
-  // the first layer's pre-activation is h(x) - W_s v(taken) + W_s v(u), with
-  // v(u) the normalised one-hot; the rest of both nets runs in
-  // CounterfactualNovelties on counterfactual_threads threads.
-  // `taken_novelty` [N] is Novelty(x).
-  // Returns [N][n][A].
-  torch::Tensor CounterfactualNovelty(const torch::Tensor& x, const torch::Tensor& taken,
-                                      const torch::Tensor& taken_novelty, int64_t action_offset, int64_t n,
-                                      int64_t A) {
+  // Novelty of every counterfactual row of the rows of `pass` without
+  // building it. Row (i, s, u) is the taken row i with the action block of
+  // slot s set to action u; the blocks start at `action_offset`, A columns
+  // each, and `taken` [N][n] (int64) holds the slot actions of the rows.
+  // Normalisation is per column, so a row differs from the taken one only in
+  // that block, and the first layer's pre-activation is
+  // h - W_s v(taken) + W_s v(u), with v(u) the normalised one-hot; the rest
+  // of both nets runs in CounterfactualNovelties on `threads` threads.
+  // `alongside`, if set, runs on this thread meanwhile (the predictor's
+  // training step: the rows use a copy of the predictor's layers taken
+  // before it, so they are the values without it). Returns [N][n][A].
+  torch::Tensor CounterfactualNovelty(const Pass& pass, const torch::Tensor& taken, int64_t action_offset,
+                                      int64_t n, int64_t A, int threads,
+                                      const std::function<void()>& alongside = {}) {
     torch::NoGradGuard no_grad;
-    const int64_t N = x.size(0);
+    const int64_t N = pass.novelty.size(0);
     // v [n][A][A]: the normalised one-hot of action u in slot s's columns.
     torch::Tensor v = torch::eye(A, torch::kFloat32).unsqueeze(0).expand({n, A, A}).contiguous();
     if (normalize) {
@@ -86,38 +99,43 @@ struct Model {
       const torch::Tensor std = torch::sqrt(obs.var().index({cols}).to(torch::kFloat32) + kEps).view({n, 1, A});
       v = ((v - mean) / std).clamp(-5.0, 5.0);
     }
-    // The first layer's pre-activation of the taken rows, h [N][H], and its
-    // response to slot s taking action u, c [n][A][H]; the tail's views.
-    struct FirstLayer {
-      torch::Tensor h, c;
-      MlpTail tail;
+    // c [n][A][H]: the first layer's response to slot s taking action u; and
+    // the views of the layers after it.
+    auto response = [&](nn::Mlp& net) {
+      const torch::Tensor& w = net->layers()[0]->weight;  // [H][D]
+      return torch::matmul(v, w.narrow(1, action_offset, n * A).reshape({-1, n, A}).permute({1, 2, 0})).contiguous();
     };
-    auto first_layer = [&](nn::Mlp& net) {
+    // With `copy`, the views are of copies kept in `copies` (the training
+    // step alongside changes the predictor's in place).
+    std::vector<torch::Tensor> copies;
+    auto tail = [&copies](nn::Mlp& net, bool copy) {
       TORCH_CHECK(net->options().activation() == nn::Activation::kRelu && !net->options().layer_norm(),
                   "rnd counterfactuals need a plain ReLU network");
+      MlpTail t;
       auto& layers = net->layers();
-      const torch::Tensor& w = layers[0]->weight;  // [H][D]
-      FirstLayer f;
-      f.c = torch::matmul(v, w.narrow(1, action_offset, n * A).reshape({-1, n, A}).permute({1, 2, 0})).contiguous();
-      f.h = layers[0]->forward(x).contiguous();
       for (size_t l = 1; l < layers.size(); ++l) {
-        const torch::Tensor& weight = layers[l]->weight;
-        TORCH_CHECK(weight.is_contiguous() && weight.scalar_type() == torch::kFloat32 &&
-                        layers[l]->bias.is_contiguous(),
-                    "rnd counterfactuals need contiguous float32 layers");
-        f.tail.layers.push_back({weight.data_ptr<float>(), layers[l]->bias.data_ptr<float>(),
-                                 static_cast<int>(weight.size(0)), static_cast<int>(weight.size(1))});
+        torch::Tensor weight = layers[l]->weight, bias = layers[l]->bias;
+        TORCH_CHECK(weight.scalar_type() == torch::kFloat32 && bias.scalar_type() == torch::kFloat32,
+                    "rnd counterfactuals need float32 layers");
+        if (copy || !weight.is_contiguous() || !bias.is_contiguous()) {
+          weight = copies.emplace_back(weight.clone(at::MemoryFormat::Contiguous));
+          bias = copies.emplace_back(bias.clone(at::MemoryFormat::Contiguous));
+        }
+        t.layers.push_back({weight.data_ptr<float>(), bias.data_ptr<float>(), static_cast<int>(weight.size(0)),
+                            static_cast<int>(weight.size(1))});
       }
-      return f;
+      return t;
     };
-    const FirstLayer t = first_layer(target), p = first_layer(predictor);
-    const torch::Tensor taken_rows = taken.contiguous();
-    const torch::Tensor taken_raw = taken_novelty.contiguous();
+    const torch::Tensor c_target = response(target), c_predictor = response(predictor);
+    const torch::Tensor taken_rows = taken.contiguous(), taken_novelty = pass.novelty.contiguous();
     torch::Tensor out = torch::empty({N, n, A}, torch::kFloat32);
-    CounterfactualNovelties(t.tail, p.tail, N, static_cast<int>(n), static_cast<int>(A),
-                            static_cast<int>(t.h.size(1)), t.h.data_ptr<float>(), p.h.data_ptr<float>(),
-                            t.c.data_ptr<float>(), p.c.data_ptr<float>(), taken_rows.data_ptr<int64_t>(),
-                            taken_raw.data_ptr<float>(), out.data_ptr<float>(), counterfactual_threads);
+    const MlpTail target_tail = tail(target, false), predictor_tail = tail(predictor, bool{alongside});
+    torch::AutoGradMode grad(true);  // For the training step alongside; the rows need none.
+    CounterfactualNovelties(target_tail, predictor_tail, N, static_cast<int>(n), static_cast<int>(A),
+                            static_cast<int>(pass.h_target.size(1)), pass.h_target.data_ptr<float>(),
+                            pass.h_predictor.data_ptr<float>(), c_target.data_ptr<float>(),
+                            c_predictor.data_ptr<float>(), taken_rows.data_ptr<int64_t>(),
+                            taken_novelty.data_ptr<float>(), out.data_ptr<float>(), threads, alongside);
     return out;
   }
 
@@ -178,7 +196,6 @@ struct Model {
     return MomentsFromTensor(moments, dim, name + "_moments");
   }
 
-  int counterfactual_threads;
   nn::Mlp target;
   nn::Mlp predictor;
   std::unique_ptr<torch::optim::Adam> optimizer;
@@ -241,7 +258,7 @@ struct RndNovelty::Impl {
 void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const int64_t N = batch.size, D = encoder.joint_dim(), A = num_actions;
   const bool imca = out.contributions != nullptr;
-  PartClock clock(out.seconds);
+  Clock::time_point lap = Clock::now();
   torch::Tensor inputs = torch::empty({N, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   std::vector<int> orders(N * n);
@@ -261,11 +278,12 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
       t[slot] = batch.actions[i * n + order[slot]];
     }
   }
-  clock.Lap(ScorePhase::kEncode);
+  AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *joint;
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor normalized = model.Normalize(inputs);
-  const torch::Tensor novelty = model.Novelty(normalized);
+  const Model::Pass pass = model.Novelty(normalized);
+  const torch::Tensor& novelty = pass.novelty;
   if (!dry_run && model.normalize) {
     model.ret.Update(StreamReturns(novelty, batch.length, batch.num_envs, 1, rnd.gamma));
   }
@@ -273,11 +291,30 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   const torch::Tensor scaled = (novelty / std).contiguous();
   const float* nov = scaled.data_ptr<float>();
   // Counterfactual novelties [N][n slots][A], scaled like the bonus (docs/credit.md).
+  // Outside a dry run the predictor's training step runs alongside the rows
+  // (it needs none of them, and they read a copy of the predictor taken
+  // before it); the counterfactual phase is then the time the rows add past
+  // that step.
   torch::Tensor cf;
+  bool trained = false;
   if (imca) {
-    clock.Restart();
-    cf = (model.CounterfactualNovelty(normalized, taken, novelty, encoder.state_dim(), n, A) / std).contiguous();
-    clock.Lap(ScorePhase::kCounterfactual);
+    std::function<void()> train;
+    double train_seconds = 0;
+    if (!dry_run) {
+      train = [&] {
+        Clock::time_point start = Clock::now();
+        TrainJoint(batch, inputs);
+        train_seconds = Lap(start);
+        trained = true;
+      };
+    }
+    lap = Clock::now();
+    cf = (model.CounterfactualNovelty(pass, taken, encoder.state_dim(), n, A, rnd.counterfactual_threads, train) /
+          std)
+             .contiguous();
+    const double seconds = Lap(lap);
+    if (trained) AddPart(out, ScorePhase::kTrain, train_seconds);
+    AddPart(out, ScorePhase::kCounterfactual, std::max(0.0, seconds - train_seconds));
   }
   for (int64_t i = 0; i < N; ++i) {
     out.joint[i] = nov[i];
@@ -290,10 +327,10 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
       out.contributions[i * n + a] = static_cast<float>(nov[i] - baseline);
     }
   }
-  if (!dry_run) {
-    clock.Restart();
+  if (!dry_run && !trained) {
+    lap = Clock::now();
     TrainJoint(batch, inputs);
-    clock.Lap(ScorePhase::kTrain);
+    AddPart(out, ScorePhase::kTrain, Lap(lap));
   }
 }
 
@@ -327,7 +364,7 @@ void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Ten
 void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_dim(with_id);
-  PartClock clock(out.seconds);
+  Clock::time_point lap = Clock::now();
   torch::Tensor inputs = torch::empty({N * n, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   for (int64_t i = 0; i < N; ++i) {
@@ -336,10 +373,10 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
                           x + (i * n + a) * D);
     }
   }
-  clock.Lap(ScorePhase::kEncode);
+  AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *local;
   if (!dry_run && model.normalize) model.obs.Update(inputs);
-  const torch::Tensor novelty = model.Novelty(model.Normalize(inputs));
+  const torch::Tensor novelty = model.Novelty(model.Normalize(inputs)).novelty;
   if (!dry_run && model.normalize) {
     model.ret.Update(StreamReturns(novelty, batch.length, batch.num_envs, n, rnd.gamma));
   }
@@ -347,10 +384,10 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   const float* nov = scaled.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
   if (!dry_run) {
-    clock.Restart();
+    lap = Clock::now();
     model.Train(model.Normalize(inputs));
     ++updates;
-    clock.Lap(ScorePhase::kTrain);
+    AddPart(out, ScorePhase::kTrain, Lap(lap));
   }
 }
 

@@ -7,6 +7,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "base/lap.h"
 #include "base/rng.h"
 #include "base/status_macros.h"
 #include "nn/archive.h"
@@ -177,7 +178,7 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
   const bool imca = out.contributions != nullptr;
   // Rows: S_t [N], S_{t+1} [N], then (imca) S_t with only agent a moved [N][n].
   const int64_t rows = N * (2 + (imca ? n : 0));
-  PartClock clock(out.seconds);
+  Clock::time_point lap = Clock::now();
   torch::Tensor inputs = torch::empty({rows, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   int order[env::kMaxAgents];
@@ -197,7 +198,7 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
       encoder.EncodeState(moved.data(), order, x + (2 * N + i * n + a) * D);
     }
   }
-  clock.Lap(ScorePhase::kEncode);
+  AddPart(out, ScorePhase::kEncode, Lap(lap));
   // The counterfactual rows ride in the same pass (counted as novelty).
   SfModel& model = *joint;
   const torch::Tensor psi = model.Psi(inputs);
@@ -222,16 +223,16 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
     }
   }
   if (!dry_run) {
-    clock.Restart();
+    lap = Clock::now();
     model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
-    clock.Lap(ScorePhase::kTrain);
+    AddPart(out, ScorePhase::kTrain, Lap(lap));
   }
 }
 
 void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_state_dim(with_id), K = batch.state_size;
-  PartClock clock(out.seconds);
+  Clock::time_point lap = Clock::now();
   torch::Tensor inputs = torch::empty({2 * N * n, D}, torch::kFloat32);
   float* x = inputs.data_ptr<float>();
   for (int64_t i = 0; i < N; ++i) {
@@ -240,17 +241,17 @@ void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, c
       encoder.EncodeLocalState(batch.next_states + i * K, a, with_id, x + (N * n + i * n + a) * D);
     }
   }
-  clock.Lap(ScorePhase::kEncode);
+  AddPart(out, ScorePhase::kEncode, Lap(lap));
   SfModel& model = *local;
   const torch::Tensor psi = model.Psi(inputs);
   const torch::Tensor novelty = (psi.narrow(0, N * n, N * n) - psi.narrow(0, 0, N * n)).pow(2).sum(1).contiguous();
   const float* nov = novelty.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
   if (!dry_run) {
-    clock.Restart();
+    lap = Clock::now();
     const torch::Tensor alive = Alive(batch).repeat_interleave(n);
     model.Train(inputs.narrow(0, 0, N * n), inputs.narrow(0, N * n, N * n), alive, sf.gamma);
-    clock.Lap(ScorePhase::kTrain);
+    AddPart(out, ScorePhase::kTrain, Lap(lap));
   }
 }
 

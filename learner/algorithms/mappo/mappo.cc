@@ -4,9 +4,9 @@
 #include <memory>
 
 #include "absl/strings/str_cat.h"
+#include "base/lap.h"
 #include "base/status_macros.h"
 #include "learner/algorithms/mappo/gae.h"
-#include "learner/lap.h"
 
 namespace imca::learner {
 

@@ -1,14 +1,15 @@
-#ifndef IMCA_LEARNER_LAP_H_
-#define IMCA_LEARNER_LAP_H_
+#ifndef IMCA_BASE_LAP_H_
+#define IMCA_BASE_LAP_H_
 
 #include <chrono>
 
-namespace imca::learner {
+namespace imca {
 
 using Clock = std::chrono::steady_clock;
 
 // Seconds since `start`, and restarts it there: consecutive laps time the
-// phases of one iteration. Pure apart from reading the clock; thread-safe.
+// phases of one piece of work (a learner iteration, a Score call, an actor's
+// loop). Pure apart from reading the clock; thread-safe.
 inline double Lap(Clock::time_point& start) {
   const Clock::time_point now = Clock::now();
   const double seconds = std::chrono::duration<double>(now - start).count();
@@ -16,6 +17,6 @@ inline double Lap(Clock::time_point& start) {
   return seconds;
 }
 
-}  // namespace imca::learner
+}  // namespace imca
 
-#endif  // IMCA_LEARNER_LAP_H_
+#endif  // IMCA_BASE_LAP_H_

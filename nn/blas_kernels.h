@@ -1,0 +1,38 @@
+#ifndef IMCA_NN_BLAS_KERNELS_H_
+#define IMCA_NN_BLAS_KERNELS_H_
+// Torch-free: any translation unit may include this.
+
+#include <string_view>
+
+namespace imca::nn {
+
+// What the CPU running the process can execute, of what OpenBLAS's kernels use.
+struct CpuFeatures {
+  bool avx2_fma = false;
+  bool avx512 = false;  // F, BW, VL and DQ: OpenBLAS's SkylakeX kernels.
+};
+CpuFeatures ThisCpu();
+
+// The OPENBLAS_CORETYPE to force when OpenBLAS chose the kernels of `core`
+// (openblas_get_corename, any case) on a CPU with `cpu`: "SkylakeX" or
+// "Haswell" when those are newer than `core`'s, else empty (keep them).
+// OpenBLAS 0.3.21 (Debian 12's) picks kernels by CPU model and falls back to
+// Prescott's SSE3 ones on models it does not know, as on VMs that report a
+// generic "Intel Xeon Processor": its GEMMs then run 2-4x slower, and so do
+// LibTorch's small MLPs (docs/benchmarks.md, "OpenBLAS's kernels").
+std::string_view BetterCoreType(std::string_view core, const CpuFeatures& cpu);
+
+// Call first in main() of a LibTorch binary, with main's argv. If the
+// process's OpenBLAS chose older kernels than this CPU runs
+// (BetterCoreType) and OPENBLAS_CORETYPE is not set, says so in one line on
+// stderr and re-executes the binary (same pid, arguments and environment)
+// with OPENBLAS_CORETYPE set; OpenBLAS reads it only as it loads. Returns
+// otherwise: OpenBLAS not loaded, the kernels fit, the variable already set
+// (by the user or the re-execution), or the re-execution failed (one line on
+// stderr; the process goes on with the kernels it has). Not thread-safe:
+// call before any thread of the program's own starts.
+void UseTheCpusBlasKernels(char** argv);
+
+}  // namespace imca::nn
+
+#endif  // IMCA_NN_BLAS_KERNELS_H_
