@@ -129,8 +129,20 @@ class ExperimentRunTest(unittest.TestCase):
                 table = f.read()
             self.assertIn("| coop_nav | count | shared | 1/1 |", table)
             self.assertIn("| coop_nav | count | imca | 1/1 |", table)
+            # The statistics: one run a cell, flagged as too few for a headline.
+            with open(os.path.join(out, "stats.md")) as f:
+                stats_md = f.read()
+            self.assertIn("| coop_nav | count | shared | 1 * |", stats_md)
+            self.assertIn("| coop_nav | count | imca | 1 * |", stats_md)
+            self.assertIn("Probability of improvement on coop_nav + count", stats_md)
+            with open(os.path.join(out, "stats.csv")) as f:
+                stats_rows = list(csv.DictReader(f))
+            improvement = {(r["method"], r["over"]): float(r["point"]) for r in stats_rows
+                           if r["statistic"] == "probability_of_improvement_final_success"}
+            self.assertEqual(set(improvement), {("shared", "imca"), ("imca", "shared")})
+            self.assertAlmostEqual(improvement["shared", "imca"] + improvement["imca", "shared"], 1.0)
             for name in ["table.csv", "curves-coop_nav-count.png", "shares-coop_nav-count.png",
-                         "gifs/coop_nav-count-imca.gif", "grid.json"]:
+                         "profile-coop_nav-count.png", "gifs/coop_nav-count-imca.gif", "grid.json"]:
                 self.assertTrue(os.path.exists(os.path.join(out, name)), name)
             trace = os.path.join(cell_dir(out, "imca"), "credit_trace.csv")
             with open(trace) as f:

@@ -6,6 +6,14 @@ Per (scenario, reward, method): mean and 95% confidence interval (Student t
 over seeds) of the final success rate, env steps to 80% and 90% success
 (mean over the seeds that got there, and how many did), wall time; learning
 curves with 95% bands; per-agent credit shares of an imca run; GIFs.
+
+And stats.md / stats.csv, the statistics reviewers now ask for
+(imca_tools.stats): per cell the IQM of final success and of env steps to
+90% (a run that never got there counted as the budget) with stratified
+bootstrap 95% intervals; per task the probability that each method's run
+beats each other's, with its interval; and a performance profile per task
+(profile-SCENARIO-REWARD.png: the fraction of runs above each final
+success).
 """
 import csv
 import math
@@ -14,7 +22,14 @@ import shutil
 import statistics
 import sys
 
-from . import runs
+from . import runs, stats
+
+# Bootstrap resamples and their generator's seed: the same runs give the
+# same intervals.
+RESAMPLES = 2000
+BOOTSTRAP_SEED = 0
+# Runs per cell below which a cell's figures are flagged as no headline.
+HEADLINE_RUNS = 10
 
 # Two-sided 95% Student t quantiles by degrees of freedom (1..30).
 T95 = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145,
@@ -87,7 +102,79 @@ def write(out, cells, summaries, method, cell_id):
         rows.append(row)
     write_table_csv(out, rows)
     write_table_md(out, rows)
+    write_stats(out, groups)
     plots(out, groups, method, cell_id)
+
+
+def fmt_interval(point, low, high, fmt):
+    return f"{fmt(point)} [{fmt(low)}, {fmt(high)}]"
+
+
+def write_stats(out, groups):
+    """stats.csv and stats.md: IQMs with intervals per cell, and the
+    probability of improvement between the methods of each task."""
+    cells, tasks = [], {}
+    for (scenario, reward, label), members in groups.items():
+        done = [s for _, s in members if s is not None]
+        if not done:
+            continue
+        budget = members[0][0]["steps"]
+        success = [s["final_success_rate"] for s in done]
+        steps90 = stats.steps_or_budget([s["steps_to_90pct_success"] for s in done], budget)
+        iqm_of = lambda t: stats.iqm(t[0])
+        cells.append({
+            "scenario": scenario, "reward": reward, "method": label, "runs": len(done), "budget": budget,
+            "success": stats.stratified_bootstrap_ci([success], iqm_of, RESAMPLES, BOOTSTRAP_SEED),
+            "steps_to_90": stats.stratified_bootstrap_ci([steps90], iqm_of, RESAMPLES, BOOTSTRAP_SEED),
+            "reached_90": sum(s["steps_to_90pct_success"] is not None for s in done)})
+        tasks.setdefault((scenario, reward), []).append((label, success))
+    improvements = []
+    for (scenario, reward), methods in tasks.items():
+        for x_label, x in methods:
+            for y_label, y in methods:
+                if x_label != y_label:
+                    improvements.append({
+                        "scenario": scenario, "reward": reward, "method": x_label, "over": y_label,
+                        "p": stats.probability_of_improvement_ci([x], [y], RESAMPLES, BOOTSTRAP_SEED)})
+    with open(os.path.join(out, "stats.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["scenario", "reward", "method", "over", "runs", "budget", "statistic", "point", "low", "high"])
+        for c in cells:
+            for name in ("success", "steps_to_90"):
+                w.writerow([c["scenario"], c["reward"], c["method"], "", c["runs"], c["budget"],
+                            f"iqm_{'final_success' if name == 'success' else name}", *c[name]])
+        for i in improvements:
+            w.writerow([i["scenario"], i["reward"], i["method"], i["over"], "", "",
+                        "probability_of_improvement_final_success", *i["p"]])
+    lines = [f"Interquartile means (IQM) over runs, with 95% percentile intervals of {RESAMPLES:,} stratified "
+             f"bootstrap resamples (seed {BOOTSTRAP_SEED}); imca_tools.stats.", "",
+             "| scenario | reward | method | runs | final success: IQM [95% CI] "
+             "| env steps to 90%: IQM [95% CI] | runs that reached 90% |",
+             "|---|---|---|---|---|---|---|"]
+    for c in cells:
+        flag = "" if c["runs"] >= HEADLINE_RUNS else " *"
+        lines.append(f"| {c['scenario']} | {c['reward']} | {c['method']} | {c['runs']}{flag} "
+                     f"| {fmt_interval(*c['success'], lambda v: f'{v:.0%}')} "
+                     f"| {fmt_interval(*c['steps_to_90'], lambda v: f'{v / 1e6:.2f}M')} "
+                     f"| {c['reached_90']}/{c['runs']} |")
+    lines += ["", "Env steps to 90%: a run that never got there counts as its budget, so where such runs "
+              "fall in the middle half the IQM is a lower bound. "
+              f"*: fewer than {HEADLINE_RUNS} runs, too few for a headline claim."]
+    for (scenario, reward), methods in tasks.items():
+        if len(methods) < 2:
+            continue
+        labels = [label for label, _ in methods]
+        lines += ["", f"Probability of improvement on {scenario} + {reward} (final success): "
+                  "P(a run of the row's method beats one of the column's), ties count half, [95% CI].", "",
+                  "| | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
+        table = {(i["method"], i["over"]): i["p"] for i in improvements
+                 if (i["scenario"], i["reward"]) == (scenario, reward)}
+        for x_label in labels:
+            row = [fmt_interval(*table[x_label, y_label], lambda v: f"{v:.2f}") if x_label != y_label else "-"
+                   for y_label in labels]
+            lines.append(f"| {x_label} | " + " | ".join(row) + " |")
+    with open(os.path.join(out, "stats.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
 
 
 def write_runs_csv(out, cells, summaries, method, cell_id):
@@ -191,6 +278,28 @@ def plots(out, groups, method, cell_id):
                     shutil.copyfile(gif, os.path.join(gif_dir, name))
                     break
         shares_plot(out, scenario, reward, methods, cell_id, plt)
+        profile_plot(out, scenario, reward, methods, plt)
+
+
+def profile_plot(out, scenario, reward, methods, plt):
+    """Performance profile: per method, the fraction of its runs whose final
+    success is above each threshold."""
+    thresholds = [i / 100 for i in range(101)]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for label, members in methods:
+        success = [s["final_success_rate"] for _, s in members if s is not None]
+        if success:
+            ax.step(thresholds, stats.performance_profile(success, thresholds), where="post", lw=1.6,
+                    label=f"{label} ({len(success)})")
+    ax.set_xlabel("final success rate threshold")
+    ax.set_ylabel("fraction of runs above it")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{scenario} + {reward}: performance profile", fontsize=10)
+    ax.legend(fontsize=8, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, f"profile-{scenario}-{reward}.png"), dpi=110)
+    plt.close(fig)
 
 
 def curves_figure(out, methods, cell_id, plt, title, path, key="success_rate"):
