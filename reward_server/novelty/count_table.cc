@@ -5,13 +5,15 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <sstream>
-#include <cstdio>
 #include <fstream>
 #include <istream>
 #include <ostream>
+#include <sstream>
+#include <utility>
+#include <vector>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -21,9 +23,13 @@
 namespace imca::reward {
 
 absl::Status CountTable::Write(std::ostream& out) const {
-  const uint64_t entries = counts_.size();
+  // In key order: the hash map's order changes from process to process
+  // (absl salts its hash), and equal tables must give equal bytes.
+  std::vector<std::pair<uint64_t, uint32_t>> sorted(counts_.begin(), counts_.end());
+  std::sort(sorted.begin(), sorted.end());
+  const uint64_t entries = sorted.size();
   out.write(reinterpret_cast<const char*>(&entries), sizeof(entries));
-  for (const auto& [key, count] : counts_) {
+  for (const auto& [key, count] : sorted) {
     out.write(reinterpret_cast<const char*>(&key), sizeof(key));
     out.write(reinterpret_cast<const char*>(&count), sizeof(count));
   }

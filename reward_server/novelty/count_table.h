@@ -28,7 +28,8 @@ class CountTable {
   int64_t size() const { return static_cast<int64_t>(counts_.size()); }
   void Reserve(int64_t keys) { counts_.reserve(keys); }
 
-  // Binary format: uint64 entry count, then (uint64 key, uint32 count) pairs.
+  // Binary format: uint64 entry count, then (uint64 key, uint32 count) pairs
+  // in key order, so that equal tables write equal bytes.
   absl::Status Write(std::ostream& out) const;
   // Replaces the contents. Errors: DATA_LOSS on a truncated stream.
   absl::Status Read(std::istream& in);
