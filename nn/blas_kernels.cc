@@ -32,18 +32,20 @@ std::string_view BetterCoreType(std::string_view core, const CpuFeatures& cpu) {
   return {};
 }
 
+std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFeatures& cpu) {
+  if (set != nullptr || core == nullptr) return {};
+  return BetterCoreType(core, cpu);
+}
+
 void UseTheCpusBlasKernels(char** argv) {
-  if (std::getenv("OPENBLAS_CORETYPE") != nullptr) return;
+  const char* set = std::getenv("OPENBLAS_CORETYPE");
   // LibTorch's BLAS is libblas.so.3; when that is OpenBLAS, it is loaded
   // with the binary and its symbols are in the global scope.
   using CoreName = char* (*)();
   const auto corename = reinterpret_cast<CoreName>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
-  if (corename == nullptr) return;
-  const char* core = corename();
-  if (core == nullptr) return;
-  const std::string_view better = BetterCoreType(core, ThisCpu());
-  if (better.empty()) return;
-  const std::string type(better);
+  const char* core = corename != nullptr ? corename() : nullptr;
+  const std::string type(CoreTypeToForce(set, core, ThisCpu()));
+  if (type.empty()) return;
   std::fprintf(stderr, "%s: OpenBLAS chose its %s kernels on this CPU; restarting with OPENBLAS_CORETYPE=%s\n",
                argv[0], core, type.c_str());
   if (setenv("OPENBLAS_CORETYPE", type.c_str(), 1) != 0) return;

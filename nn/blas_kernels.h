@@ -22,6 +22,11 @@ CpuFeatures ThisCpu();
 // LibTorch's small MLPs (docs/benchmarks.md, "OpenBLAS's kernels").
 std::string_view BetterCoreType(std::string_view core, const CpuFeatures& cpu);
 
+// UseTheCpusBlasKernels's decision: the OPENBLAS_CORETYPE to restart with,
+// or empty to go on. `set` is the variable's value (null: unset), `core`
+// what OpenBLAS chose (null: no OpenBLAS loaded). Pure.
+std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFeatures& cpu);
+
 // Call first in main() of a LibTorch binary, with main's argv. If the
 // process's OpenBLAS chose older kernels than this CPU runs
 // (BetterCoreType) and OPENBLAS_CORETYPE is not set, says so in one line on

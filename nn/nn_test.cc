@@ -1,7 +1,6 @@
 #include <torch/torch.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 
 #include "gtest/gtest.h"
@@ -177,14 +176,16 @@ TEST(BlasKernelsTest, OlderKernelsThanTheCpuRunsAreReplaced) {
   EXPECT_EQ(BetterCoreType("", sse), "");
 }
 
-TEST(BlasKernelsTest, ASetCoreTypeIsLeftAlone) {
-  // The variable set (by a user or the restart): returns, never re-executes.
-  ASSERT_EQ(setenv("OPENBLAS_CORETYPE", "Prescott", 1), 0);
-  char name[] = "nn_test";
-  char* argv[] = {name, nullptr};
-  UseTheCpusBlasKernels(argv);
-  EXPECT_STREQ(std::getenv("OPENBLAS_CORETYPE"), "Prescott");
-  unsetenv("OPENBLAS_CORETYPE");
+TEST(BlasKernelsTest, RestartsOnlyWhenUnsetAndOpenBlasChoseOlderKernels) {
+  const CpuFeatures avx512{.avx2_fma = true, .avx512 = true};
+  EXPECT_EQ(CoreTypeToForce(nullptr, "Prescott", avx512), "SkylakeX");
+  // Set by a user, or by the restart itself (which must not loop), even to
+  // the old kernels or to nothing.
+  EXPECT_EQ(CoreTypeToForce("Prescott", "Prescott", avx512), "");
+  EXPECT_EQ(CoreTypeToForce("", "Prescott", avx512), "");
+  // No OpenBLAS loaded (the reference BLAS, or MKL).
+  EXPECT_EQ(CoreTypeToForce(nullptr, nullptr, avx512), "");
+  EXPECT_EQ(CoreTypeToForce(nullptr, "SkylakeX", avx512), "");
 }
 
 }  // namespace

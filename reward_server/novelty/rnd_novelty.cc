@@ -87,9 +87,10 @@ struct Model {
   // training step: the rows use a copy of the predictor's layers taken
   // before it, so they are the values without it). Returns [N][n][A].
   torch::Tensor CounterfactualNovelty(const Pass& pass, const torch::Tensor& taken, int64_t action_offset,
-                                      int64_t n, int64_t A, int threads,
-                                      const std::function<void()>& alongside = {}) {
-    torch::NoGradGuard no_grad;
+                                      int64_t n, int64_t A, int threads, const std::function<void()>& alongside) {
+    // No gradients for what the rows read; the training step alongside runs
+    // after this scope, with the caller's grad mode.
+    std::optional<torch::NoGradGuard> no_grad(std::in_place);
     const int64_t N = pass.novelty.size(0);
     // v [n][A][A]: the normalised one-hot of action u in slot s's columns.
     torch::Tensor v = torch::eye(A, torch::kFloat32).unsqueeze(0).expand({n, A, A}).contiguous();
@@ -130,7 +131,7 @@ struct Model {
     const torch::Tensor taken_rows = taken.contiguous(), taken_novelty = pass.novelty.contiguous();
     torch::Tensor out = torch::empty({N, n, A}, torch::kFloat32);
     const MlpTail target_tail = tail(target, false), predictor_tail = tail(predictor, bool{alongside});
-    torch::AutoGradMode grad(true);  // For the training step alongside; the rows need none.
+    no_grad.reset();
     CounterfactualNovelties(target_tail, predictor_tail, N, static_cast<int>(n), static_cast<int>(A),
                             static_cast<int>(pass.h_target.size(1)), pass.h_target.data_ptr<float>(),
                             pass.h_predictor.data_ptr<float>(), c_target.data_ptr<float>(),
@@ -295,26 +296,23 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   // (it needs none of them, and they read a copy of the predictor taken
   // before it); the counterfactual phase is then the time the rows add past
   // that step.
+  double train_seconds = 0;
+  std::function<void()> train;
+  if (!dry_run) {
+    train = [&] {
+      Clock::time_point start = Clock::now();
+      TrainJoint(batch, inputs);
+      train_seconds = Lap(start);
+      AddPart(out, ScorePhase::kTrain, train_seconds);
+    };
+  }
   torch::Tensor cf;
-  bool trained = false;
   if (imca) {
-    std::function<void()> train;
-    double train_seconds = 0;
-    if (!dry_run) {
-      train = [&] {
-        Clock::time_point start = Clock::now();
-        TrainJoint(batch, inputs);
-        train_seconds = Lap(start);
-        trained = true;
-      };
-    }
     lap = Clock::now();
     cf = (model.CounterfactualNovelty(pass, taken, encoder.state_dim(), n, A, rnd.counterfactual_threads, train) /
           std)
              .contiguous();
-    const double seconds = Lap(lap);
-    if (trained) AddPart(out, ScorePhase::kTrain, train_seconds);
-    AddPart(out, ScorePhase::kCounterfactual, std::max(0.0, seconds - train_seconds));
+    AddPart(out, ScorePhase::kCounterfactual, std::max(0.0, Lap(lap) - train_seconds));
   }
   for (int64_t i = 0; i < N; ++i) {
     out.joint[i] = nov[i];
@@ -327,11 +325,7 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
       out.contributions[i * n + a] = static_cast<float>(nov[i] - baseline);
     }
   }
-  if (!dry_run && !trained) {
-    lap = Clock::now();
-    TrainJoint(batch, inputs);
-    AddPart(out, ScorePhase::kTrain, Lap(lap));
-  }
+  if (train && !imca) train();
 }
 
 void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {

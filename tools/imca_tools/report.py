@@ -130,12 +130,14 @@ def write_stats(out, groups):
         tasks.setdefault((scenario, reward), []).append((label, success))
     improvements = []
     for (scenario, reward), methods in tasks.items():
-        for x_label, x in methods:
-            for y_label, y in methods:
-                if x_label != y_label:
-                    improvements.append({
-                        "scenario": scenario, "reward": reward, "method": x_label, "over": y_label,
-                        "p": stats.probability_of_improvement_ci([x], [y], RESAMPLES, BOOTSTRAP_SEED)})
+        for i, (x_label, x) in enumerate(methods):
+            for y_label, y in methods[i + 1:]:
+                # P(Y > X) = 1 - P(X > Y), on the same resamples.
+                p, low, high = stats.probability_of_improvement_ci([x], [y], RESAMPLES, BOOTSTRAP_SEED)
+                improvements += [
+                    {"scenario": scenario, "reward": reward, "method": x_label, "over": y_label, "p": (p, low, high)},
+                    {"scenario": scenario, "reward": reward, "method": y_label, "over": x_label,
+                     "p": (1 - p, 1 - high, 1 - low)}]
     with open(os.path.join(out, "stats.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["scenario", "reward", "method", "over", "runs", "budget", "statistic", "point", "low", "high"])
