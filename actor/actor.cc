@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <thread>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -37,6 +38,9 @@ absl::Status Actor::Validate(const ActorConfig& config) {
   }
   if (config.rpc_timeout.count() < 100 || config.ack_timeout.count() < 100) {
     return absl::InvalidArgumentError("rpc_timeout and ack_timeout (--rpc_timeout_ms, --ack_timeout_ms) must be >= 100 ms");
+  }
+  if (config.score_delay.count() < 0 || config.score_delay.count() > 60000) {
+    return absl::InvalidArgumentError("score_delay (--score_delay_ms) must be in [0, 60000] ms");
   }
   return absl::OkStatus();
 }
@@ -143,6 +147,7 @@ absl::Status Actor::Admit(const v1::Policy& policy) {
     sync_unrolls_ = static_cast<int>(share / unroll_steps);
   }
   version_unrolls_ = 0;  // A share starts with each policy taken.
+  policy_final_ = policy.final();
   counters_.policy_updates->Increment();
   counters_.policy_version->Set(static_cast<double>(policy.version()));
   return absl::OkStatus();
@@ -222,6 +227,7 @@ void Actor::Rollout(v1::Unroll* u) {
 }
 
 absl::Status Actor::Score(v1::Unroll* unroll) {
+  if (config_.score_delay.count() > 0) std::this_thread::sleep_for(config_.score_delay);
   v1::ScoreRequest request;
   // The reward server reads states, next states, actions, probabilities and
   // episode ids; swap the unroll in and out instead of copying it.
@@ -328,6 +334,10 @@ absl::Status Actor::Run() {
             phase = Phase::kDone;  // The policy client's error() says why, if not stopped.
             break;
           }
+        }
+        if (policy_final_) {
+          phase = Phase::kDone;  // The learner's budget is trained: nothing acted now would be.
+          break;
         }
         unroll.Clear();
         Rollout(&unroll);

@@ -43,6 +43,10 @@ struct ActorConfig {
   // queue is full, by up to an iteration): past it the stream is cancelled,
   // logged, and the unroll resent on a new one.
   std::chrono::milliseconds ack_timeout{60000};
+  // Testing: a pause before each Score call, which changes the order in
+  // which actors' calls reach the reward server and the learner (the
+  // deterministic-run test gives actors different ones).
+  std::chrono::milliseconds score_delay{0};
   // If set, the newest finished training episode of env 0 with its credit
   // (one CSV row per step and agent: episode, t, agent, cell, next_cell,
   // action, share, contribution, agent_reward, global_reward) is written here,
@@ -200,6 +204,7 @@ class Actor {
   Counters counters_;
   int version_unrolls_ = 0;  // Unrolls delivered that were acted with the current policy version.
   int sync_unrolls_ = 0;     // In effect: config_.sync_unrolls, or as the policy asks.
+  bool policy_final_ = false;  // The policy in use is the learner's last (Policy.final): act no more.
 
   PolicyClient policies_;
   UnrollSender sender_;

@@ -37,6 +37,8 @@ ABSL_FLAG(std::string, actor_id, "", "name reported to the learner (default: hos
 ABSL_FLAG(int, rpc_timeout_ms, static_cast<int>(kDefaults.rpc_timeout.count()), "deadline of every RPC");
 ABSL_FLAG(int, ack_timeout_ms, static_cast<int>(kDefaults.ack_timeout.count()),
           "longest wait for the learner's ack of one unroll; past it the stream is cancelled and the unroll resent");
+ABSL_FLAG(int, score_delay_ms, 0,
+          "testing: pause this long before each Score call, changing the order actors' calls arrive in");
 ABSL_FLAG(int, sync_unrolls, kDefaults.sync_unrolls,
           "act this many unrolls with each policy version, then wait for the next version (0: asynchronous; "
           "-1: as the learner's policy asks, its batch_steps / actors env steps for a synchronous learner)");
@@ -113,6 +115,7 @@ int main(int argc, char** argv) {
   config.sync_unrolls = absl::GetFlag(FLAGS_sync_unrolls);
   config.rpc_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_rpc_timeout_ms));
   config.ack_timeout = std::chrono::milliseconds(absl::GetFlag(FLAGS_ack_timeout_ms));
+  config.score_delay = std::chrono::milliseconds(absl::GetFlag(FLAGS_score_delay_ms));
   config.trace_file = absl::GetFlag(FLAGS_trace_file);
   config.status_file = service_flags->status_file;
   if (absl::Status valid = actor::Actor::Validate(config); !valid.ok()) return fail(std::string(valid.message()));

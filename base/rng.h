@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 #include <random>
+#include <string_view>
 
 namespace imca {
 
@@ -52,6 +53,18 @@ class Rng {
   static uint64_t Rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
   uint64_t s_[4];
 };
+
+// The seed of the stream `name` #`index` of a run seeded `seed` (e.g. an
+// actor's Score call: its id and sequence): the same for the same three
+// values in any process, unrelated for different ones.
+inline uint64_t NamedSeed(uint64_t seed, std::string_view name, uint64_t index) {
+  uint64_t h = 0xcbf29ce484222325ULL;  // FNV-1a of the name.
+  for (unsigned char c : name) h = (h ^ c) * 0x100000001b3ULL;
+  uint64_t state = seed;
+  const uint64_t a = Rng::SplitMix64(state);
+  uint64_t mixed = a ^ Rng::SplitMix64(h) ^ (index * 0x9e3779b97f4a7c15ULL);
+  return Rng::SplitMix64(mixed);
+}
 
 // A random nonzero id of a process's incarnation (the device, the clock and
 // the pid mixed): a restarted process draws another.

@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <map>
+#include <tuple>
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/numbers.h"
@@ -88,6 +90,11 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
                                                          const LearnerConfig& config) {
   if (config.batch_steps < 1) return absl::InvalidArgumentError("batch_steps must be >= 1");
   if (config.actors < 1) return absl::InvalidArgumentError("actors must be >= 1");
+  if (config.deterministic && !config.synchronous) {
+    return absl::InvalidArgumentError(
+        "deterministic needs synchronous collection (synchronous true): only then is each batch a fixed set of "
+        "unrolls");
+  }
   if (config.synchronous && config.batch_steps % config.actors != 0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "batch_steps ", config.batch_steps, " is not a multiple of actors ", config.actors,
@@ -193,7 +200,9 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std
           .max_actor_ids = config.max_actor_ids,
           .validate = [this](const v1::Unroll& unroll) { return Validate(unroll); },
           .featurise = [this](v1::Unroll unroll) { return algorithm_->Featurise(std::move(unroll)); },
-          .on_accept = [this](const v1::Unroll& unroll) { CountEpisodes(unroll); },
+          // Deterministic: counted in batch order by Run instead.
+          .on_accept = config.deterministic ? std::function<void(const v1::Unroll&)>()
+                                            : [this](const v1::Unroll& unroll) { CountEpisodes(unroll); },
       }) {
   RegisterMetrics();
   if (!config_.run_dir.empty()) {
@@ -334,6 +343,19 @@ std::optional<FeaturisedUnroll> Learner::NextUnroll() {
   return next;
 }
 
+absl::Status Learner::AddToBatch(FeaturisedUnroll* queued) {
+  // Adding may train (MADDPG's due updates): like Train, it is not a stall.
+  {
+    absl::MutexLock lock(&mu_);
+    training_since_ = std::chrono::steady_clock::now();
+  }
+  const absl::Status added = algorithm_->Add(*queued);
+  absl::MutexLock lock(&mu_);
+  training_since_.reset();
+  last_progress_ = std::chrono::steady_clock::now();
+  return added;
+}
+
 absl::Status Learner::Run() {
   while (true) {
     {
@@ -341,9 +363,11 @@ absl::Status Learner::Run() {
       if (stopping_ || (config_.budget_steps > 0 && env_steps_ >= config_.budget_steps)) break;
     }
     // Each unroll's values and advantages are computed as it arrives, while
-    // the actors still produce the rest of the batch.
+    // the actors still produce the rest of the batch; a deterministic
+    // learner holds them until the batch is whole and adds them in order.
     phases_ = Phases();
     std::vector<v1::Unroll> unrolls;
+    std::vector<FeaturisedUnroll> held;  // Deterministic: the batch so far.
     int64_t steps = 0;
     Clock::time_point lap = Clock::now();
     while (steps < config_.batch_steps) {
@@ -351,21 +375,25 @@ absl::Status Learner::Run() {
       phases_.wait += Lap(lap);
       if (!queued.has_value()) break;  // Stopping.
       phases_.featurise += queued->featurise_seconds;
-      // Adding may train (MADDPG's due updates): like Train, it is not a stall.
-      {
-        absl::MutexLock lock(&mu_);
-        training_since_ = std::chrono::steady_clock::now();
-      }
-      const absl::Status added = algorithm_->Add(*queued);
-      {
-        absl::MutexLock lock(&mu_);
-        training_since_.reset();
-        last_progress_ = std::chrono::steady_clock::now();
-      }
-      IMCA_RETURN_IF_ERROR(added);
-      lap = Clock::now();
       steps += UnrollSteps(queued->unroll);
-      unrolls.push_back(std::move(queued->unroll));
+      if (config_.deterministic) {
+        held.push_back(*std::move(queued));
+      } else {
+        IMCA_RETURN_IF_ERROR(AddToBatch(&*queued));
+        unrolls.push_back(std::move(queued->unroll));
+      }
+      lap = Clock::now();
+    }
+    if (config_.deterministic && (steps >= config_.batch_steps || algorithm_->off_policy())) {
+      std::sort(held.begin(), held.end(), [](const FeaturisedUnroll& a, const FeaturisedUnroll& b) {
+        return std::make_tuple(std::cref(a.unroll.actor_id()), a.unroll.sequence(), a.unroll.incarnation()) <
+               std::make_tuple(std::cref(b.unroll.actor_id()), b.unroll.sequence(), b.unroll.incarnation());
+      });
+      for (FeaturisedUnroll& queued : held) {
+        CountEpisodes(queued.unroll);
+        IMCA_RETURN_IF_ERROR(AddToBatch(&queued));
+        unrolls.push_back(std::move(queued.unroll));
+      }
     }
     if (steps < config_.batch_steps) {
       // Stopping mid-iteration: an off-policy algorithm has already trained
@@ -502,6 +530,7 @@ void Learner::Publish() {
 std::shared_ptr<const v1::Policy> Learner::ExportPolicy() const {
   v1::Policy policy = algorithm_->ExportPolicy(version_);
   policy.set_sync_steps_per_actor(config_.synchronous ? config_.batch_steps / config_.actors : 0);
+  policy.set_final(config_.budget_steps > 0 && env_steps_ >= config_.budget_steps);
   return std::make_shared<const v1::Policy>(std::move(policy));
 }
 
@@ -562,7 +591,11 @@ absl::Status Learner::SaveCheckpoint() {
   // The newest trained unroll of each actor incarnation, so that a
   // restarted learner still recognises resends of what it trained (and
   // takes again what was only queued: that was lost with the process).
-  for (const auto& [actor, accepted] : queue_.Trained()) {
+  // By actor id, so that equal runs write equal metadata (but for the wall
+  // clock and the incarnations, which are each process's own).
+  const absl::flat_hash_map<std::string, UnrollQueue::Accepted> by_actor = queue_.Trained();
+  const std::map<std::string, UnrollQueue::Accepted> sorted(by_actor.begin(), by_actor.end());
+  for (const auto& [actor, accepted] : sorted) {
     v1::CheckpointMeta::Trained* trained = meta.add_trained();
     trained->set_actor_id(actor);
     trained->set_incarnation(accepted.incarnation);

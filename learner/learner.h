@@ -124,6 +124,8 @@ class Learner {
   double SecondsStalled(std::chrono::steady_clock::time_point now, int queue_depth) const
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   double SecondsTraining(std::chrono::steady_clock::time_point now) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Adds one unroll to the algorithm's batch (which may train: MADDPG).
+  absl::Status AddToBatch(FeaturisedUnroll* queued);
   // Trains the algorithm on the iteration made of `unrolls` (already
   // added), publishes and writes metrics.
   absl::Status TrainOn(const std::vector<v1::Unroll>& unrolls);

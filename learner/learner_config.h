@@ -90,6 +90,13 @@ struct LearnerConfig {
   // (each version waits for shares nobody acts); more waste the unrolls
   // refused once the batch is full.
   int actors = 2;
+  // Deterministic batches (needs synchronous): each iteration's unrolls are
+  // added to the algorithm, and their episodes to the metrics windows, in
+  // (actor id, sequence, incarnation) order once the whole batch is in,
+  // not as they arrive. With the reward server's --deterministic and the
+  // actors' seeds fixed, a run is a function of its configuration
+  // (docs/learner.md, "Deterministic runs").
+  bool deterministic = false;
   // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
   // value of interaction (EdtiInteractionRewards, learner/algorithms/mappo/gae.h, from the
   // unroll's influences and the critic's values of the influenced agents),

@@ -51,6 +51,9 @@ ABSL_FLAG(bool, maddpg_share, kDefaults.maddpg.share_parameters,
 ABSL_FLAG(std::optional<int64_t>, batch_steps, std::nullopt,
           "joint env steps per iteration (mappo: the PPO batch; maddpg: between policy publications); default: "
           "the scenario's (--list)");
+ABSL_FLAG(bool, deterministic, kDefaults.deterministic,
+          "add each batch's unrolls in (actor id, sequence) order once it is whole, not as they arrive: with the "
+          "reward server's --deterministic, a run is a function of its configuration (needs --synchronous)");
 ABSL_FLAG(int, actors, kDefaults.actors,
           "actors collecting for a synchronous learner: each policy version asks each for batch_steps / actors "
           "env steps");
@@ -192,6 +195,7 @@ absl::StatusOr<imca::learner::LearnerConfig> ConfigFromFlags(absl::string_view s
   config.time_limit = *time_limit;
   if (const auto synchronous = absl::GetFlag(FLAGS_synchronous)) config.synchronous = *synchronous;
   config.actors = absl::GetFlag(FLAGS_actors);
+  config.deterministic = absl::GetFlag(FLAGS_deterministic);
   config.seed = absl::GetFlag(FLAGS_seed);
   config.threads = absl::GetFlag(FLAGS_threads);
   config.ppo.concurrent_critic = absl::GetFlag(FLAGS_concurrent_critic);
@@ -226,6 +230,7 @@ std::string ConfigJson(const imca::learner::LearnerConfig& c) {
       .Add("batch_steps", c.batch_steps)
       .Add("synchronous", c.synchronous)
       .Add("actors", c.actors)
+      .Add("deterministic", c.deterministic)
       .Add("max_policy_lag", c.max_policy_lag)
       .Add("queue_capacity", c.queue_capacity)
       .Add("max_batch_mb", c.max_batch_bytes / 1000000)

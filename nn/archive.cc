@@ -1,12 +1,73 @@
 #include "nn/archive.h"
 
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "base/atomic_file.h"
 
 namespace imca::nn {
+
+namespace {
+
+constexpr char kAdamFormat[] = "imca_adam_v1";
+
+std::string ParamKey(size_t group, size_t param, const char* field) {
+  return absl::StrCat(group, ".", param, ".", field);
+}
+
+}  // namespace
+
+void WriteAdam(torch::serialize::OutputArchive& archive, const std::string& key, const torch::optim::Adam& adam) {
+  torch::serialize::OutputArchive sub(archive.compilation_unit());
+  sub.write(kAdamFormat, torch::tensor(int64_t{1}));
+  const auto& groups = adam.param_groups();
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const auto& params = groups[g].params();
+    for (size_t i = 0; i < params.size(); ++i) {
+      const auto found = adam.state().find(c10::guts::to_string(params[i].unsafeGetTensorImpl()));
+      if (found == adam.state().end()) continue;  // No step taken with it yet.
+      const auto& state = static_cast<const torch::optim::AdamParamState&>(*found->second);
+      sub.write(ParamKey(g, i, "step"), torch::tensor(state.step()));
+      sub.write(ParamKey(g, i, "exp_avg"), state.exp_avg());
+      sub.write(ParamKey(g, i, "exp_avg_sq"), state.exp_avg_sq());
+      if (state.max_exp_avg_sq().defined()) sub.write(ParamKey(g, i, "max_exp_avg_sq"), state.max_exp_avg_sq());
+    }
+  }
+  archive.write(key, sub);
+}
+
+void ReadAdam(torch::serialize::InputArchive& archive, const std::string& key, torch::optim::Adam& adam) {
+  torch::serialize::InputArchive sub;
+  archive.read(key, sub);
+  torch::Tensor format;
+  if (!sub.try_read(kAdamFormat, format)) {
+    adam.load(sub);  // Written by Optimizer::save (before this format).
+    return;
+  }
+  adam.state().clear();  // The file's state replaces all of it.
+  auto& groups = adam.param_groups();
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const auto& params = groups[g].params();
+    for (size_t i = 0; i < params.size(); ++i) {
+      torch::Tensor step, exp_avg, exp_avg_sq, max_exp_avg_sq;
+      if (!sub.try_read(ParamKey(g, i, "step"), step)) continue;
+      sub.read(ParamKey(g, i, "exp_avg"), exp_avg);
+      sub.read(ParamKey(g, i, "exp_avg_sq"), exp_avg_sq);
+      if (!exp_avg.sizes().equals(params[i].sizes()) || !exp_avg_sq.sizes().equals(params[i].sizes())) {
+        throw std::runtime_error(absl::StrCat(key, ": the moments of parameter ", g, ".", i,
+                                              " do not have its shape"));
+      }
+      auto state = std::make_unique<torch::optim::AdamParamState>();
+      state->step(step.item<int64_t>());
+      state->exp_avg(exp_avg);
+      state->exp_avg_sq(exp_avg_sq);
+      if (sub.try_read(ParamKey(g, i, "max_exp_avg_sq"), max_exp_avg_sq)) state->max_exp_avg_sq(max_exp_avg_sq);
+      adam.state()[c10::guts::to_string(params[i].unsafeGetTensorImpl())] = std::move(state);
+    }
+  }
+}
 
 absl::Status SaveArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::OutputArchive&)>& fill) {

@@ -26,6 +26,18 @@ absl::StatusOr<std::string> SerializeArchive(const std::string& tag,
 // FAILED_PRECONDITION (other tag), DATA_LOSS (missing or bad entries).
 absl::Status LoadArchive(const std::string& path, const std::string& tag,
                          const std::function<void(torch::serialize::InputArchive&)>& read);
+// An Adam optimiser's state (each parameter's step and moments) written
+// under `key` by the parameter's position. LibTorch's Optimizer::save keys
+// it by tensor addresses, so that equal states wrote different bytes in
+// every process; this is what makes checkpoints and snapshots of equal runs
+// equal. The hyperparameters are not written: they come from the
+// configuration.
+void WriteAdam(torch::serialize::OutputArchive& archive, const std::string& key, const torch::optim::Adam& adam);
+// Replaces `adam`'s state with WriteAdam's entry (`adam` built over
+// parameters of the same shapes), or an older file's Optimizer::save under
+// `key`. Throws (as archive reads do) on a missing or mismatched entry.
+void ReadAdam(torch::serialize::InputArchive& archive, const std::string& key, torch::optim::Adam& adam);
+
 // The learned novelties' snapshot: an optional joint and an optional local
 // model (each with Write/Read(archive, prefix)) and one counter, under `tag`,
 // as bytes (SerializeArchive). Load reads into fresh models from

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <memory>
 
 #include "gtest/gtest.h"
 #include "nn/archive.h"
@@ -159,6 +160,59 @@ TEST(ArchiveTest, TagMismatchAndMissingFileAreTypedErrors) {
   std::filesystem::remove(path);
 }
 
+
+// Two equal nets, each with an Adam that took the same steps.
+struct Trained {
+  Mlp net;
+  std::unique_ptr<torch::optim::Adam> adam;
+  explicit Trained(int steps) : net(MlpOptions({4, 6, 2}).seed(3)) {
+    adam = std::make_unique<torch::optim::Adam>(net->parameters(), torch::optim::AdamOptions(1e-2));
+    for (int i = 0; i < steps; ++i) Step();
+  }
+  void Step() {
+    adam->zero_grad();
+    net->forward(torch::ones({3, 4})).pow(2).sum().backward();
+    adam->step();
+  }
+};
+
+TEST(ArchiveTest, EqualAdamStatesWriteEqualBytesAndReadBackExactly) {
+  Trained a(3), b(3);  // Other tensors, other addresses.
+  const auto bytes = [](const Trained& t) {
+    return SerializeArchive("t", [&](torch::serialize::OutputArchive& archive) { WriteAdam(archive, "adam", *t.adam); });
+  };
+  const absl::StatusOr<std::string> of_a = bytes(a), of_b = bytes(b);
+  ASSERT_TRUE(of_a.ok() && of_b.ok());
+  EXPECT_EQ(*of_a, *of_b);
+  // Read into a fresh optimiser over the same weights, it steps as the original.
+  const std::string path = (std::filesystem::temp_directory_path() / "nn_test_adam.pt").string();
+  ASSERT_TRUE(SaveArchive(path, "t", [&](torch::serialize::OutputArchive& archive) {
+                WriteAdam(archive, "adam", *a.adam);
+              }).ok());
+  Trained c(0);
+  {
+    torch::NoGradGuard no_grad;
+    for (size_t i = 0; i < c.net->parameters().size(); ++i) c.net->parameters()[i].copy_(a.net->parameters()[i]);
+  }
+  ASSERT_TRUE(LoadArchive(path, "t", [&](torch::serialize::InputArchive& archive) {
+                ReadAdam(archive, "adam", *c.adam);
+              }).ok());
+  a.Step();
+  c.Step();
+  for (size_t i = 0; i < a.net->parameters().size(); ++i) {
+    EXPECT_TRUE(torch::equal(a.net->parameters()[i], c.net->parameters()[i])) << i;
+  }
+  // An optimiser that took no step writes no moments, and reads back as none.
+  Trained fresh(0);
+  ASSERT_TRUE(SaveArchive(path, "t", [&](torch::serialize::OutputArchive& archive) {
+                WriteAdam(archive, "adam", *fresh.adam);
+              }).ok());
+  ASSERT_TRUE(LoadArchive(path, "t", [&](torch::serialize::InputArchive& archive) {
+                ReadAdam(archive, "adam", *c.adam);
+              }).ok());
+  EXPECT_TRUE(c.adam->state().empty());
+  std::filesystem::remove(path);
+}
 
 TEST(BlasKernelsTest, OlderKernelsThanTheCpuRunsAreReplaced) {
   const CpuFeatures avx512{.avx2_fma = true, .avx512 = true}, avx2{.avx2_fma = true}, sse{};

@@ -32,6 +32,13 @@ struct ScorerConfig {
   double beta = 1.0;         // Coefficient of the global bonus.
   double temperature = 1.0;  // tau of the softmax over contributions.
   uint64_t seed = 1;         // For the random permutation mode.
+  // Deterministic scoring (docs/credit.md, "Deterministic runs"): every
+  // call of one policy version sees the state as the version's first call
+  // found it plus its own batch's updates, and the updates of a version
+  // reach the state in (actor id, sequence) order, whatever order the calls
+  // came in. Kinds then draw per-call randomness from the call's named
+  // stream (NamedSeed(seed, actor id, sequence)).
+  bool deterministic = false;
 };
 
 // p^a = softmax_a(r^a / tau) over n contributions (numerically stable).

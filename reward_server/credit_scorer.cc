@@ -16,6 +16,11 @@ absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, N
   Clock::time_point lap = Clock::now();
   absl::MutexLock lock(&mu_);
   SecondsOf(*parts, ScorePhase::kLockWait) += Lap(lap);
+  if (config_.deterministic && !dry_run && batch.policy_version > version_) {
+    IMCA_RETURN_IF_ERROR(novelty_->NewVersion());
+    version_ = batch.policy_version;
+    SecondsOf(*parts, ScorePhase::kTrain) += Lap(lap);  // The last version's updates.
+  }
   ScoreSeconds kind{};  // The parts the kind reports.
   out.seconds = &kind;
   const absl::Status status = novelty_->Compute(batch, dry_run, out);

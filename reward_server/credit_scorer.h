@@ -2,6 +2,7 @@
 #define IMCA_REWARD_SERVER_CREDIT_SCORER_H_
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -27,6 +28,9 @@ namespace imca::reward {
 // influences a share can fall outside [0, 1]: they are diagnostics only).
 // Thread-safe: one mutex serialises the novelty's calls (the credit rule runs
 // outside it); a snapshot is copied under it and written without it.
+// Deterministic (config.deterministic): the first call of a newer policy
+// version (not a dry run) first has the novelty close the last one
+// (Novelty::NewVersion); a call of an older version counts as the newest's.
 // ScoreOutput::seconds gets the call's lock wait, the kind's parts and the
 // credit rule's time.
 class CreditScorer : public Scorer {
@@ -59,6 +63,8 @@ class CreditScorer : public Scorer {
   mutable absl::Mutex mu_;
   const bool returns_influences_;
   const std::unique_ptr<Novelty> novelty_ ABSL_PT_GUARDED_BY(mu_);
+  // Deterministic: the newest policy version scored (Novelty::NewVersion).
+  int64_t version_ ABSL_GUARDED_BY(mu_) = std::numeric_limits<int64_t>::min();
   const ScorerConfig config_;
   const int n_;
 };

@@ -49,6 +49,10 @@ ABSL_FLAG(std::optional<double>, beta, std::nullopt,
           "coefficient of the global intrinsic reward (default: the reward kind's; --list)");
 ABSL_FLAG(double, temperature, kScorer.temperature, "softmax temperature tau of the credit shares");
 ABSL_FLAG(uint64_t, seed, kScorer.seed, "seed of the random permutation mode");
+ABSL_FLAG(bool, deterministic, kScorer.deterministic,
+          "score each policy version's calls against the state its first call found, applying the version's "
+          "updates in (actor id, sequence) order: with the learner's --deterministic, a run is a function of its "
+          "configuration");
 ABSL_FLAG(std::string, snapshot, "",
           "snapshot file: restored at start (count kinds: with the journal of every increment since, "
           "<snapshot>.journal-*), written periodically and at shutdown");
@@ -82,6 +86,7 @@ std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig
       .AddExact("beta", c.beta)
       .AddExact("temperature", c.temperature)
       .Add("seed", c.seed)
+      .Add("deterministic", c.deterministic)
       .AddExact("eta", kinds.influence.eta)
       .AddExact("beta_t", kinds.influence.beta_t)
       .Add("influence_log", kinds.influence.log_form)
@@ -154,6 +159,7 @@ int main(int argc, char** argv) {
   if (const auto beta = absl::GetFlag(FLAGS_beta)) config.beta = *beta;
   config.temperature = absl::GetFlag(FLAGS_temperature);
   config.seed = absl::GetFlag(FLAGS_seed);
+  config.deterministic = absl::GetFlag(FLAGS_deterministic);
   reward::RewardKindConfig kinds;
   kinds.rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
   kinds.rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);

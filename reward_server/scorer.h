@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "absl/status/status.h"
 #include "imca/v1/reward_service.pb.h"
@@ -25,6 +26,11 @@ struct TransitionBatch {
   const int64_t* episode_ids = nullptr; // [N]
   const bool* terminated = nullptr;     // [N] or null (unknown: no episode ended)
   uint64_t actor = 0;                   // Hash of the sending actor's id (episode ids are per actor).
+  // The unroll's actor id, sequence and acting policy version: the order in
+  // which a deterministic scorer applies one version's updates.
+  std::string_view actor_id;
+  int64_t sequence = 0;
+  int64_t policy_version = 0;
 };
 
 // Where a Score call's time goes (RewardStats.score_seconds, the metric

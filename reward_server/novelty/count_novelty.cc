@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "base/status_macros.h"
@@ -19,7 +20,7 @@ float CountBonus(uint32_t count_before) {
 }  // namespace
 
 CountNovelty::CountNovelty(const env::Scenario& scenario, const ScorerConfig& config)
-    : CountedNovelty(2),
+    : CountedNovelty(2, config.deterministic),
       scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
       n_(scenario.num_agents()),
       num_actions_(scenario.num_actions()),
@@ -35,16 +36,21 @@ uint32_t CountNovelty::JointCount(const int32_t* state, const int32_t* actions) 
 }
 
 absl::Status CountNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+  // Deterministic: the random permutations of a call come from its own
+  // stream, not from the order calls arrive in.
+  std::optional<Rng> call_rng;
+  if (config_.deterministic) call_rng.emplace(NamedSeed(config_.seed, batch.actor_id, batch.sequence));
+  Rng& rng = call_rng.has_value() ? *call_rng : rng_;
   for (int64_t i = 0; i < batch.size; ++i) {
     ComputeOne(batch.states + i * k_, batch.actions + i * n_, batch.action_probs + i * n_ * num_actions_, dry_run,
-               out, i);
+               out, i, rng);
   }
   // Journaled before the response goes out.
   return store_.Commit(dry_run ? 0 : batch.size);
 }
 
 void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
-                              const NoveltyOutput& out, int64_t i) {
+                              const NoveltyOutput& out, int64_t i, Rng& rng) {
   if (out.local != nullptr) {
     const bool shared_table = config_.permutation != Permutation::kOff;
     for (int a = 0; a < n_; ++a) {
@@ -80,7 +86,7 @@ void CountNovelty::ComputeOne(const int32_t* state, const int32_t* actions, cons
   }
   if (dry_run) return;
   if (config_.permutation == Permutation::kRandom) {
-    for (int slot = n_ - 1; slot > 0; --slot) std::swap(order[slot], order[rng_.Uniform(slot + 1)]);
+    for (int slot = n_ - 1; slot > 0; --slot) std::swap(order[slot], order[rng.Uniform(slot + 1)]);
     store_.Increment(kGlobal, codec_.GlobalKey(state, actions, order));
   } else {
     store_.Increment(kGlobal, key);

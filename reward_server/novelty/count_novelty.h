@@ -40,7 +40,7 @@ class CountNovelty final : public CountedNovelty {
 
  private:
   void ComputeOne(const int32_t* state, const int32_t* actions, const float* probs, bool dry_run,
-                  const NoveltyOutput& out, int64_t i);
+                  const NoveltyOutput& out, int64_t i, Rng& rng);
   std::string ConfigTag() const override;
 
   const std::string scenario_tag_;  // Scenario name and map size, for snapshots.
@@ -52,7 +52,7 @@ class CountNovelty final : public CountedNovelty {
 
   static constexpr int kGlobal = 0;  // The joint table.
   static constexpr int kLocal = 1;   // The per-agent tables (one key space).
-  Rng rng_;
+  Rng rng_;  // The random permutations (a call's own stream when deterministic).
 };
 
 }  // namespace imca::reward

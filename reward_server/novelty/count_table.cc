@@ -195,8 +195,22 @@ CountStore::~CountStore() {
   if (journal_fd_ >= 0) ::close(journal_fd_);
 }
 
+void CountStore::KeepVersionView() {
+  version_delta_.assign(tables_.size(), CountTable());
+  call_delta_.assign(tables_.size(), CountTable());
+}
+
+void CountStore::NewVersion() {
+  for (CountTable& delta : version_delta_) delta.Clear();
+  for (CountTable& delta : call_delta_) delta.Clear();
+}
+
 void CountStore::Add(int table, uint64_t key, uint32_t count) {
   tables_[table].Add(key, count);
+  if (!version_delta_.empty()) {
+    version_delta_[table].Add(key, count);
+    call_delta_[table].Add(key, count);
+  }
   if (journal_fd_ < 0) return;
   Put(&pending_, static_cast<uint8_t>(table));
   Put(&pending_, key);
@@ -205,6 +219,7 @@ void CountStore::Add(int table, uint64_t key, uint32_t count) {
 
 absl::Status CountStore::Commit(int64_t transitions) {
   transitions_ += transitions;
+  for (CountTable& delta : call_delta_) delta.Clear();
   if (journal_fd_ < 0 || (pending_.empty() && transitions == 0)) return absl::OkStatus();
   // Record: magic, payload bytes, checksum; payload: transitions, entries.
   std::string record;
@@ -286,6 +301,7 @@ absl::Status CountStore::Restore(const std::string& path, const std::string& tag
     return opened;
   }
   tables_ = std::move(file.tables);
+  NewVersion();
   transitions_ = file.transitions;
   sync_ = sync;
   pending_.clear();
@@ -316,6 +332,7 @@ absl::Status CountStore::WriteSnapshot(const std::string& path, const std::strin
 absl::Status CountStore::Load(const std::string& path, const std::string& tag) {
   IMCA_ASSIGN_OR_RETURN(SnapshotFile file, ReadSnapshot(path, tag, static_cast<int>(tables_.size())));
   tables_ = std::move(file.tables);
+  NewVersion();
   transitions_ = file.transitions;
   return absl::OkStatus();
 }

@@ -26,6 +26,7 @@ class CountTable {
   void Increment(uint64_t key) { ++counts_[key]; }
   void Add(uint64_t key, uint32_t count) { counts_[key] += count; }
   int64_t size() const { return static_cast<int64_t>(counts_.size()); }
+  void Clear() { counts_.clear(); }
   void Reserve(int64_t keys) { counts_.reserve(keys); }
 
   // Binary format: uint64 entry count, then (uint64 key, uint32 count) pairs
@@ -63,10 +64,24 @@ class CountStore {
   CountStore& operator=(const CountStore&) = delete;
 
   const CountTable& table(int i) const { return tables_[i]; }
-  uint32_t Get(int table, uint64_t key) const { return tables_[table].Get(key); }
+  // The count Score reads: the table's, or with a version view, the table's
+  // as the current version began plus the current call's own increments.
+  uint32_t Get(int table, uint64_t key) const {
+    if (version_delta_.empty()) return tables_[table].Get(key);
+    return tables_[table].Get(key) - version_delta_[table].Get(key) + call_delta_[table].Get(key);
+  }
   // Applies at once; journaled by the next Commit.
   void Increment(int table, uint64_t key) { Add(table, key, 1); }
   void Add(int table, uint64_t key, uint32_t count);
+
+  // Deterministic scoring (ScorerConfig::deterministic): from now on Get
+  // reads through a version view, so that the calls of one policy version
+  // do not see each other's increments (which are applied and journaled at
+  // once as ever: the tables, snapshots and journals do not change).
+  void KeepVersionView();
+  // Starts a version: the increments so far become visible to every call.
+  void NewVersion();
+
   // Ends one Score call: counts `transitions` and appends the increments
   // since the last Commit to the journal in one write(), before the caller
   // answers. Without a journal (no Restore yet) it only counts. With `sync`
@@ -114,6 +129,10 @@ class CountStore {
   off_t journal_bytes_ = 0;  // Of complete records (and the header) in the open journal.
   bool sync_ = false;
   std::string pending_;  // Entries since the last Commit.
+  // The version view (KeepVersionView; empty without one): the increments of
+  // the current version's calls, and of the current call.
+  std::vector<CountTable> version_delta_;
+  std::vector<CountTable> call_delta_;
 };
 
 }  // namespace imca::reward

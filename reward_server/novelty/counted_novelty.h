@@ -22,9 +22,18 @@ class CountedNovelty : public Novelty {
   absl::Status Load(const std::string& path) final;
   absl::Status Restore(const std::string& path, bool sync) final;
   std::optional<int64_t> DurableTransitions() const final;
+  // Deterministic scoring: the last version's increments become visible.
+  absl::Status NewVersion() final {
+    store_.NewVersion();
+    return absl::OkStatus();
+  }
 
  protected:
-  explicit CountedNovelty(int num_tables) : store_(num_tables) {}
+  // `deterministic`: reads go through a version view
+  // (CountStore::KeepVersionView).
+  CountedNovelty(int num_tables, bool deterministic) : store_(num_tables) {
+    if (deterministic) store_.KeepVersionView();
+  }
   // The configuration line of snapshots and journals: a file written under
   // another one is refused.
   virtual std::string ConfigTag() const = 0;

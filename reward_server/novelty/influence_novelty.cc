@@ -56,7 +56,7 @@ void AddTransition(int n, const int32_t* cells, const int32_t* actions, const in
 
 InfluenceNovelty::InfluenceNovelty(const env::Scenario& scenario, const ScorerConfig& config,
                                    const InfluenceConfig& influence)
-    : CountedNovelty(2),
+    : CountedNovelty(2, config.deterministic),
       scenario_tag_(absl::StrCat(scenario.name(), " ", scenario.map().width(), "x", scenario.map().height())),
       n_(scenario.num_agents()),
       k_(scenario.state_size()),

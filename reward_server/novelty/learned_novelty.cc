@@ -1,6 +1,8 @@
 #include "reward_server/novelty/learned_novelty.h"
 
+#include <algorithm>
 #include <exception>
+#include <tuple>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -21,7 +23,8 @@ class BytesSnapshot final : public Novelty::Snapshot {
 
 }  // namespace
 
-LearnedNovelty::LearnedNovelty(std::string kind, Credit credit) : kind_(std::move(kind)), credit_(credit) {}
+LearnedNovelty::LearnedNovelty(std::string kind, Credit credit, bool deterministic)
+    : kind_(std::move(kind)), credit_(credit), deterministic_(deterministic) {}
 
 absl::Status LearnedNovelty::CheckNetwork(absl::string_view kind, const std::vector<int>& hidden,
                                           double learning_rate, double gamma) {
@@ -39,15 +42,41 @@ absl::Status LearnedNovelty::Compute(const TransitionBatch& batch, bool dry_run,
     return absl::InternalError(absl::StrCat(kind_, ": no ", local ? "local" : "joint", " model in credit mode ",
                                             CreditName(credit_)));
   }
+  deferring_ = deterministic_ && !dry_run;
+  deferred_.clear();
   try {
     if (local) {
       ComputeLocal(batch, dry_run, out);
     } else {
       ComputeJoint(batch, dry_run, out);
     }
-    EndRequest(dry_run);
   } catch (const std::exception& e) {
+    deferring_ = false;
     return absl::InternalError(absl::StrCat(kind_, ": ", e.what()));
+  }
+  if (deferring_) {
+    deferring_ = false;
+    deferred_.push_back([this] { EndRequest(/*dry_run=*/false); });
+    pending_.push_back(Pending{std::string(batch.actor_id), batch.sequence, std::move(deferred_)});
+    deferred_.clear();
+  } else {
+    EndRequest(dry_run);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status LearnedNovelty::NewVersion() {
+  std::vector<Pending> pending = std::move(pending_);
+  pending_.clear();
+  std::sort(pending.begin(), pending.end(), [](const Pending& a, const Pending& b) {
+    return std::tie(a.actor_id, a.sequence) < std::tie(b.actor_id, b.sequence);
+  });
+  try {
+    for (const Pending& call : pending) {
+      for (const auto& update : call.updates) update();
+    }
+  } catch (const std::exception& e) {
+    return absl::InternalError(absl::StrCat(kind_, ": the last version's updates: ", e.what()));
   }
   return absl::OkStatus();
 }

@@ -1,6 +1,7 @@
 #ifndef IMCA_REWARD_SERVER_NOVELTY_LEARNED_NOVELTY_H_
 #define IMCA_REWARD_SERVER_NOVELTY_LEARNED_NOVELTY_H_
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,6 +30,9 @@ class LearnedNovelty : public Novelty {
   bool Supports(Credit) const final { return true; }
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) final;
   absl::StatusOr<std::unique_ptr<Snapshot>> TakeSnapshot() final;
+  // Deterministic: runs the updates the last version's calls deferred, in
+  // (actor id, sequence) order.
+  absl::Status NewVersion() final;
 
  protected:
   // INVALID_ARGUMENT naming `kind`'s field out of range: every hidden width
@@ -36,8 +40,23 @@ class LearnedNovelty : public Novelty {
   static absl::Status CheckNetwork(absl::string_view kind, const std::vector<int>& hidden, double learning_rate,
                                    double gamma);
 
-  // `kind` names the novelty in errors ("rnd", "sf").
-  LearnedNovelty(std::string kind, Credit credit);
+  // `kind` names the novelty in errors ("rnd", "sf"). `deterministic`: a
+  // call's updates are deferred (Defer) to the next version.
+  LearnedNovelty(std::string kind, Credit credit, bool deterministic);
+
+  // Deterministic scoring outside a dry run: the call scores with the state
+  // as it is (the version's start) and leaves it unchanged, handing each
+  // update it would have made to Defer instead; NewVersion runs them, call
+  // by call in (actor id, sequence) order, then EndRequest's.
+  bool deferring() const { return deferring_; }
+  // What a kind's Impl is handed to defer with: Defer while deferring(),
+  // else empty.
+  using Deferrer = std::function<void(std::function<void()>)>;
+  Deferrer deferrer() {
+    return deferring_ ? Deferrer([this](std::function<void()> update) { Defer(std::move(update)); }) : Deferrer();
+  }
+  // Keeps `update` (which may throw) for NewVersion. Only while deferring().
+  void Defer(std::function<void()> update) { deferred_.push_back(std::move(update)); }
 
   // The joint model's outputs (joint, and contributions for imca), or the
   // local model's (local). May throw; must change no state before it could.
@@ -49,8 +68,19 @@ class LearnedNovelty : public Novelty {
   virtual absl::StatusOr<std::string> Serialize() const = 0;
 
  private:
+  // One call's deferred updates.
+  struct Pending {
+    std::string actor_id;
+    int64_t sequence = 0;
+    std::vector<std::function<void()>> updates;
+  };
+
   const std::string kind_;
   const Credit credit_;
+  const bool deterministic_;
+  bool deferring_ = false;                     // During a deterministic call.
+  std::vector<std::function<void()>> deferred_;  // The current call's.
+  std::vector<Pending> pending_;               // The current version's calls'.
 };
 
 }  // namespace imca::reward

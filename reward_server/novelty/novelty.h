@@ -63,6 +63,11 @@ class Novelty {
   virtual absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) = 0;
   // Fills the kind-specific fields of `stats`.
   virtual void FillStats(v1::RewardStats* stats) const = 0;
+  // Deterministic scoring (ScorerConfig::deterministic): the owner calls
+  // this before the first call of each newer policy version. A kind makes
+  // the previous version's updates visible, in (actor id, sequence) order
+  // where order matters (learned kinds train then). Errors: INTERNAL.
+  virtual absl::Status NewVersion() { return absl::OkStatus(); }
 
   // All learned state, copied out so that it can be written without holding
   // the owner's lock (Score is not blocked by I/O).

@@ -158,25 +158,23 @@ struct Model {
   }
 
   void Write(torch::serialize::OutputArchive& archive, const std::string& prefix) const {
-    torch::serialize::OutputArchive t, p, o;
+    torch::serialize::OutputArchive t, p;
     target->save(t);
     predictor->save(p);
-    optimizer->save(o);
     archive.write(prefix + "target", t);
     archive.write(prefix + "predictor", p);
-    archive.write(prefix + "optimizer", o);
+    nn::WriteAdam(archive, prefix + "optimizer", *optimizer);
     archive.write(prefix + "obs_moments", obs.ToTensor());
     archive.write(prefix + "ret_moments", ret.ToTensor());
   }
 
   void Read(torch::serialize::InputArchive& archive, const std::string& prefix) {
-    torch::serialize::InputArchive t, p, o;
+    torch::serialize::InputArchive t, p;
     archive.read(prefix + "target", t);
     archive.read(prefix + "predictor", p);
-    archive.read(prefix + "optimizer", o);
     target->load(t);
     predictor->load(p);
-    optimizer->load(o);
+    nn::ReadAdam(archive, prefix + "optimizer", *optimizer);
     obs = ReadMoments(archive, prefix + "obs", obs.dim());
     ret = ReadMoments(archive, prefix + "ret", 1);
   }
@@ -238,8 +236,12 @@ struct RndNovelty::Impl {
     }
   }
 
-  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
-  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+  // `defer` (deterministic scoring, LearnedNovelty::deferrer): score with
+  // the models and moments as they are, and hand it the updates.
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    const LearnedNovelty::Deferrer& defer);
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    const LearnedNovelty::Deferrer& defer);
   void TrainJoint(const TransitionBatch& batch, const torch::Tensor& inputs);
 
   const int n;
@@ -256,7 +258,8 @@ struct RndNovelty::Impl {
   int64_t updates = 0;
 };
 
-void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                                    const LearnedNovelty::Deferrer& defer) {
   const int64_t N = batch.size, D = encoder.joint_dim(), A = num_actions;
   const bool imca = out.contributions != nullptr;
   Clock::time_point lap = Clock::now();
@@ -281,12 +284,17 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   }
   AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *joint;
+  // Deferring: the call's own moments are used, then put back (Update
+  // replaces the moments' tensors, so the copies stay as they were).
+  const nn::RunningMoments obs_before = model.obs, ret_before = model.ret;
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor normalized = model.Normalize(inputs);
   const Model::Pass pass = model.Novelty(normalized);
   const torch::Tensor& novelty = pass.novelty;
+  torch::Tensor returns;
   if (!dry_run && model.normalize) {
-    model.ret.Update(StreamReturns(novelty, batch.length, batch.num_envs, 1, rnd.gamma));
+    returns = StreamReturns(novelty, batch.length, batch.num_envs, 1, rnd.gamma);
+    model.ret.Update(returns);
   }
   const double std = model.RewardStd();
   const torch::Tensor scaled = (novelty / std).contiguous();
@@ -298,7 +306,7 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   // that step.
   double train_seconds = 0;
   std::function<void()> train;
-  if (!dry_run) {
+  if (!dry_run && !defer) {
     train = [&] {
       Clock::time_point start = Clock::now();
       TrainJoint(batch, inputs);
@@ -326,6 +334,26 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
     }
   }
   if (train && !imca) train();
+  if (defer) {
+    model.obs = obs_before;
+    model.ret = ret_before;
+    // The step reads states and actions (random permutation): kept with it.
+    std::vector<int32_t> states(batch.states, batch.states + N * stride);
+    std::vector<int32_t> actions(batch.actions, batch.actions + N * n);
+    defer([this, inputs, returns, states = std::move(states), actions = std::move(actions), N, stride] {
+      Model& model = *joint;
+      if (model.normalize) {
+        model.obs.Update(inputs);
+        model.ret.Update(returns);
+      }
+      TransitionBatch kept;
+      kept.size = N;
+      kept.state_size = stride;
+      kept.states = states.data();
+      kept.actions = actions.data();
+      TrainJoint(kept, inputs);
+    });
+  }
 }
 
 void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Tensor& taken) {
@@ -355,7 +383,8 @@ void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Ten
   ++updates;
 }
 
-void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                                    const LearnedNovelty::Deferrer& defer) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_dim(with_id);
   Clock::time_point lap = Clock::now();
@@ -369,15 +398,30 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   }
   AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *local;
+  const nn::RunningMoments obs_before = model.obs, ret_before = model.ret;  // As ComputeJoint's.
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor novelty = model.Novelty(model.Normalize(inputs)).novelty;
+  torch::Tensor returns;
   if (!dry_run && model.normalize) {
-    model.ret.Update(StreamReturns(novelty, batch.length, batch.num_envs, n, rnd.gamma));
+    returns = StreamReturns(novelty, batch.length, batch.num_envs, n, rnd.gamma);
+    model.ret.Update(returns);
   }
   const torch::Tensor scaled = (novelty / model.RewardStd()).contiguous();
   const float* nov = scaled.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
-  if (!dry_run) {
+  if (defer) {
+    model.obs = obs_before;
+    model.ret = ret_before;
+    defer([this, inputs, returns] {
+      Model& model = *local;
+      if (model.normalize) {
+        model.obs.Update(inputs);
+        model.ret.Update(returns);
+      }
+      model.Train(model.Normalize(inputs));
+      ++updates;
+    });
+  } else if (!dry_run) {
     lap = Clock::now();
     model.Train(model.Normalize(inputs));
     ++updates;
@@ -399,15 +443,15 @@ absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenar
 }
 
 RndNovelty::RndNovelty(std::unique_ptr<Impl> impl)
-    : LearnedNovelty("rnd", impl->config.credit), impl_(std::move(impl)) {}
+    : LearnedNovelty("rnd", impl->config.credit, impl->config.deterministic), impl_(std::move(impl)) {}
 RndNovelty::~RndNovelty() = default;
 
 void RndNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeJoint(batch, dry_run, out);
+  impl_->ComputeJoint(batch, dry_run, out, deferrer());
 }
 
 void RndNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeLocal(batch, dry_run, out);
+  impl_->ComputeLocal(batch, dry_run, out, deferrer());
 }
 
 void RndNovelty::FillStats(v1::RewardStats* stats) const {

@@ -63,27 +63,25 @@ struct SfModel {
   }
 
   void Write(torch::serialize::OutputArchive& archive, const std::string& prefix) const {
-    torch::serialize::OutputArchive a, b, c, o;
+    torch::serialize::OutputArchive a, b, c;
     phi->save(a);
     psi->save(b);
     psi_target->save(c);
-    optimizer->save(o);
     archive.write(prefix + "phi", a);
     archive.write(prefix + "psi", b);
     archive.write(prefix + "psi_target", c);
-    archive.write(prefix + "optimizer", o);
+    nn::WriteAdam(archive, prefix + "optimizer", *optimizer);
   }
 
   void Read(torch::serialize::InputArchive& archive, const std::string& prefix) {
-    torch::serialize::InputArchive a, b, c, o;
+    torch::serialize::InputArchive a, b, c;
     archive.read(prefix + "phi", a);
     archive.read(prefix + "psi", b);
     archive.read(prefix + "psi_target", c);
-    archive.read(prefix + "optimizer", o);
     phi->load(a);
     psi->load(b);
     psi_target->load(c);
-    optimizer->load(o);
+    nn::ReadAdam(archive, prefix + "optimizer", *optimizer);
   }
 
   nn::Mlp phi;
@@ -157,8 +155,12 @@ struct SfNovelty::Impl {
     encoder.EncodeState(state, order, x.data());
     return torch::tensor(x).unsqueeze(0);
   }
-  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
-  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out);
+  // `defer` (deterministic scoring, LearnedNovelty::deferrer): score with
+  // psi as it is and hand it the training step.
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    const LearnedNovelty::Deferrer& defer);
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    const LearnedNovelty::Deferrer& defer);
 
   const int n;
   const ScorerConfig config;
@@ -173,7 +175,8 @@ struct SfNovelty::Impl {
   absl::flat_hash_map<uint64_t, uint32_t> previous_visits;
 };
 
-void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                                   const LearnedNovelty::Deferrer& defer) {
   const int64_t N = batch.size, D = encoder.state_dim(), K = batch.state_size;
   const bool imca = out.contributions != nullptr;
   // Rows: S_t [N], S_{t+1} [N], then (imca) S_t with only agent a moved [N][n].
@@ -222,14 +225,19 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
       out.agent_divisor[i * n + a] = std::sqrt(static_cast<double>(visits));
     }
   }
-  if (!dry_run) {
+  if (defer) {
+    defer([this, x = inputs.narrow(0, 0, N), next = inputs.narrow(0, N, N), alive = Alive(batch)] {
+      joint->Train(x, next, alive, sf.gamma);
+    });
+  } else if (!dry_run) {
     lap = Clock::now();
     model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
     AddPart(out, ScorePhase::kTrain, Lap(lap));
   }
 }
 
-void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
+void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                                   const LearnedNovelty::Deferrer& defer) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_state_dim(with_id), K = batch.state_size;
   Clock::time_point lap = Clock::now();
@@ -247,7 +255,10 @@ void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, c
   const torch::Tensor novelty = (psi.narrow(0, N * n, N * n) - psi.narrow(0, 0, N * n)).pow(2).sum(1).contiguous();
   const float* nov = novelty.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
-  if (!dry_run) {
+  if (defer) {
+    defer([this, x = inputs.narrow(0, 0, N * n), next = inputs.narrow(0, N * n, N * n),
+           alive = Alive(batch).repeat_interleave(n)] { local->Train(x, next, alive, sf.gamma); });
+  } else if (!dry_run) {
     lap = Clock::now();
     const torch::Tensor alive = Alive(batch).repeat_interleave(n);
     model.Train(inputs.narrow(0, 0, N * n), inputs.narrow(0, N * n, N * n), alive, sf.gamma);
@@ -264,17 +275,17 @@ absl::StatusOr<std::unique_ptr<SfNovelty>> SfNovelty::Create(const env::Scenario
 }
 
 SfNovelty::SfNovelty(std::unique_ptr<Impl> impl)
-    : LearnedNovelty("sf", impl->config.credit), impl_(std::move(impl)) {}
+    : LearnedNovelty("sf", impl->config.credit, impl->config.deterministic), impl_(std::move(impl)) {}
 
 void SfNovelty::EndRequest(bool dry_run) { impl_->EndRequest(dry_run); }
 SfNovelty::~SfNovelty() = default;
 
 void SfNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeJoint(batch, dry_run, out);
+  impl_->ComputeJoint(batch, dry_run, out, deferrer());
 }
 
 void SfNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeLocal(batch, dry_run, out);
+  impl_->ComputeLocal(batch, dry_run, out, deferrer());
 }
 
 void SfNovelty::FillStats(v1::RewardStats* stats) const {

@@ -90,6 +90,23 @@ def presets():
                         {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
                          "permutation": "off", "seed": [1, 2, 3, 4, 5], "steps": 3_000_000}],
         },
+        "headline": {
+            "description": "the headline comparisons, 10 seeds, --deterministic: EDTI's pass and secret_room with "
+                           "count novelty and credit none/shared/imca against EITI and EDTI (3M env steps), and "
+                           "coop_nav with count novelty, credit shared and imca with permutation "
+                           "off/random/canonical (2M)",
+            "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
+                         "permutation": "off", "seed": list(range(1, 11)), "steps": 3_000_000,
+                         "flags": {"deterministic": True}},
+                        {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
+                         "permutation": "off", "seed": list(range(1, 11)), "steps": 3_000_000,
+                         "flags": {"deterministic": True}},
+                        {"scenario": "coop_nav", "reward": "count", "credit": "shared", "permutation": "off",
+                         "seed": list(range(1, 11)), "steps": 2_000_000, "flags": {"deterministic": True}},
+                        {"scenario": "coop_nav", "reward": "count", "credit": "imca",
+                         "permutation": binaries.facts()["permutations"], "seed": list(range(1, 11)),
+                         "steps": 2_000_000, "flags": {"deterministic": True}}],
+        },
         "quick": {
             "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",
             "entries": pairing("coop_nav", "count", 1_000_000, [1, 2])
@@ -260,7 +277,8 @@ def finished(run_dir, cell):
 
 # config.json keys that name where and how a run was launched, not what it trained.
 UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "map", "max_restarts", "stall_seconds",
-                       "checkpoint_seconds", "snapshot_every", "given", "resolved"}
+                       "checkpoint_seconds", "snapshot_every", "given", "resolved", "actor_score_delays_ms",
+                       "score_delays"}
 
 
 def settings_conflict(run_dir, cell):

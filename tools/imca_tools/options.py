@@ -71,6 +71,11 @@ OPTIONS = [
     ("--separate-optimizers", {"learner": "separate_optimizers"},
      dict(type=boolean, metavar="BOOL",
           help="one Adam and grad clip each for actor and critic, false: one over both")),
+    ("--deterministic", {"reward_server": "deterministic", "learner": "deterministic"},
+     dict(type=boolean, metavar="BOOL",
+          help="a run that replays bit for bit: the learner adds each batch in (actor, sequence) order and the "
+               "reward server applies each policy version's updates in that order (needs --sync true; "
+               "docs/learner.md)")),
     ("--sync", {"learner": "synchronous"},
      dict(type=boolean, metavar="BOOL",
           help="synchronous collection: every iteration trains on the policy it starts from, each actor acting "

@@ -40,6 +40,9 @@ def parser(description=None):
                    help="mutual TLS and a bearer token on every connection: a throwaway CA, certificates and "
                         "token are made in <run folder>/tls with openssl (docs/security.md)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.add_argument("--actor-score-delays-ms", default="", metavar="MS,MS,...",
+                   help="testing: actor i pauses the i-th value before each Score call, changing the order the "
+                        "actors' calls arrive in (what --deterministic must not depend on)")
     return p
 
 
@@ -80,6 +83,12 @@ def parse_args(argv, description=None):
     if args.metrics_port and not 1 <= args.metrics_port <= 65535 - 1 - args.actors:
         p.error(f"argument --metrics-port: must be in [1, {65535 - 1 - args.actors}] "
                 f"(it takes N .. N+{1 + args.actors}), or 0 for no endpoints")
+    try:
+        args.score_delays = [int(v) for v in args.actor_score_delays_ms.split(",")] if args.actor_score_delays_ms else []
+    except ValueError:
+        p.error(f"argument --actor-score-delays-ms: not a list of integers: '{args.actor_score_delays_ms}'")
+    if any(not 0 <= d <= 60000 for d in args.score_delays) or len(args.score_delays) > args.actors:
+        p.error(f"argument --actor-score-delays-ms: at most --actors values, each in [0, 60000]")
     if args.max_restarts < 0:
         p.error("argument --max-restarts: must be >= 0")
     if args.stall_seconds < 10:

@@ -170,6 +170,7 @@ def run(args):
                 # Its own wait for an ack gives up before the supervisor's.
                 f"--ack_timeout_ms={int(args.stall_seconds * 500)}"] + actor_tls(i) + metrics_flag(name)
                 + ([f"--trace_file={os.path.join(run_dir, 'credit_trace.csv')}"] if i == 0 else [])
+                + ([f"--score_delay_ms={args.score_delays[i]}"] if i < len(args.score_delays) else [])
                 + [f"--seed={args.seed * 1000 + i + 1}"],
                 restart_args=lambda name=name, i=i: [
                     f"--seed={args.seed * 1000 + i + 1 + 1_000_003 * services.restarts[name]}"])

@@ -452,11 +452,8 @@ absl::Status Maddpg::Save(const std::string& path) const {
       save(absl::StrCat("target_actor", i), s.nets.target_actors[i]);
       save(absl::StrCat("target_critic", i), s.nets.target_critics[i]);
     }
-    torch::serialize::OutputArchive actor_opt(archive.compilation_unit()), critic_opt(archive.compilation_unit());
-    s.nets.actor_optimizer->save(actor_opt);
-    s.nets.critic_optimizer->save(critic_opt);
-    archive.write("actor_optimizer", actor_opt);
-    archive.write("critic_optimizer", critic_opt);
+    nn::WriteAdam(archive, "actor_optimizer", *s.nets.actor_optimizer);
+    nn::WriteAdam(archive, "critic_optimizer", *s.nets.critic_optimizer);
     archive.write("generator", s.generator.get_state());
     archive.write("counters", torch::tensor({static_cast<double>(s.updates), s.credit}, torch::kFloat64));
   });
@@ -490,11 +487,8 @@ absl::Status Maddpg::Load(const std::string& path) {
       load(absl::StrCat("target_actor", i), fresh.target_actors[i]);
       load(absl::StrCat("target_critic", i), fresh.target_critics[i]);
     }
-    torch::serialize::InputArchive actor_opt, critic_opt;
-    archive.read("actor_optimizer", actor_opt);
-    archive.read("critic_optimizer", critic_opt);
-    fresh.actor_optimizer->load(actor_opt);
-    fresh.critic_optimizer->load(critic_opt);
+    nn::ReadAdam(archive, "actor_optimizer", *fresh.actor_optimizer);
+    nn::ReadAdam(archive, "critic_optimizer", *fresh.critic_optimizer);
     torch::Tensor generator_state, counters;
     archive.read("generator", generator_state);
     archive.read("counters", counters);

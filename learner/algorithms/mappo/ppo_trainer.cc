@@ -23,6 +23,7 @@
 #include "base/enum_names.h"
 #include "base/lap.h"
 #include "base/status_macros.h"
+#include "nn/archive.h"
 #include "nn/mlp.h"
 #include "nn/policy_export.h"
 #include "nn/running_moments.h"
@@ -609,9 +610,7 @@ void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   archive.write("critic", critic);
   archive.write("architecture", torch::tensor(Architecture(config_), torch::kInt64));
   for (size_t i = 0; i < model_.optimizers.size(); ++i) {
-    torch::serialize::OutputArchive optimizer(archive.compilation_unit());
-    model_.optimizers[i]->save(optimizer);
-    archive.write(i == 0 ? "optimizer" : "optimizer_critic", optimizer);
+    nn::WriteAdam(archive, i == 0 ? "optimizer" : "optimizer_critic", *model_.optimizers[i]);
   }
   archive.write("value_norm_ext", ext_norm_.ToTensor());
   archive.write("value_norm_int", int_norm_.ToTensor());
@@ -656,9 +655,7 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
   fresh.critic->load(critic);
   IMCA_RETURN_IF_ERROR(CheckSameShapes(*model_.critic, *fresh.critic, "critic"));
   for (size_t i = 0; i < fresh.optimizers.size(); ++i) {
-    torch::serialize::InputArchive optimizer;
-    archive.read(i == 0 ? "optimizer" : "optimizer_critic", optimizer);
-    fresh.optimizers[i]->load(optimizer);
+    nn::ReadAdam(archive, i == 0 ? "optimizer" : "optimizer_critic", *fresh.optimizers[i]);
     for (auto& group : fresh.optimizers[i]->param_groups()) {
       static_cast<torch::optim::AdamOptions&>(group.options())
           .lr(config_.learning_rate)
