@@ -34,8 +34,9 @@ class DeterministicRunTest(unittest.TestCase):
             train(b, "0,40", "--deterministic", str(deterministic).lower(), *flags)
             rows, same = same_run.differences(a, b)
             names = {name for name, _, _ in rows}
-            for wanted in ("policy.pb", "reward_snapshot.bin", "checkpoints/ckpt-00000016.pt"):
+            for wanted in ("policy.pb", "reward_snapshot.bin", "metrics.csv (no wall columns)"):
                 self.assertIn(wanted, names)
+            self.assertTrue(any(n.startswith("checkpoints/") and n.endswith(".pt") for n in names), names)
             return rows, same
 
     def test_count_imca_runs_are_identical_whatever_the_arrival_order(self):
@@ -44,6 +45,10 @@ class DeterministicRunTest(unittest.TestCase):
 
     def test_rnd_runs_are_identical_whatever_the_arrival_order(self):
         rows, same = self.check_pair("--reward", "rnd")
+        self.assertTrue(same, "\n".join(f"{n}: {x} {y}" for n, x, y in rows if x != y))
+
+    def test_synchronous_maddpg_runs_are_identical_whatever_the_arrival_order(self):
+        rows, same = self.check_pair("--algo", "maddpg", "--sync", "true", "--steps", "30720")
         self.assertTrue(same, "\n".join(f"{n}: {x} {y}" for n, x, y in rows if x != y))
 
     def test_without_the_flag_the_arrival_order_shows(self):

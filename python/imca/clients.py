@@ -164,7 +164,7 @@ class RewardClient(_Client):
         return _message_dict(self._call("GetStats", self._stub.GetStats, self._pb.GetStatsRequest()))
 
     def score(self, states, actions, probs, next_states=None, episode_ids=None, terminated=None, env=None,
-              dry_run=False):
+              dry_run=False, policy_version=None):
         """Scores T steps of E environments and returns a ScoreResult.
 
         states      [T+1, E, K] int  compact states: states[t] is where actions[t] were taken
@@ -178,6 +178,10 @@ class RewardClient(_Client):
         env         an imca env: its scenario fingerprint is sent (the server then refuses
                     another map or rules); default: the server's scenario is taken on trust
         dry_run     score without updating the server's counts or models
+        policy_version  the version of the policy that acted: a reward server started with
+                    --deterministic scores every call of a version against the state the
+                    version's first call found (docs/credit.md); default: this call's
+                    sequence number, so that each call is a version of its own
         Raises ValueError naming the argument for bad shapes or values (nothing
         is sent), ServiceError for a refusal.
         """
@@ -210,6 +214,9 @@ class RewardClient(_Client):
             if terminated.dtype != np.bool_ or terminated.shape != (T, E):
                 raise ValueError(f"terminated: expected a bool array of shape ({T}, {E}), "
                                  f"got {terminated.dtype} {terminated.shape}")
+        if policy_version is not None and (isinstance(policy_version, bool) or
+                                           not isinstance(policy_version, (int, np.integer)) or policy_version < 0):
+            raise ValueError(f"policy_version: expected an integer >= 0, got {policy_version!r}")
         if T * E > 65536:
             raise ValueError(f"states: T * E = {T * E} transitions exceed the server's 65536 per call")
         request = self._pb.ScoreRequest(dry_run=bool(dry_run))
@@ -222,6 +229,7 @@ class RewardClient(_Client):
         self._sequence += 1
         u.incarnation = self._incarnation
         u.sequence = self._sequence
+        u.policy_version = self._sequence if policy_version is None else int(policy_version)
         u.states.extend(states.ravel().tolist())
         u.actions.extend(actions.ravel().tolist())
         u.action_probs.extend(probs.ravel().tolist())

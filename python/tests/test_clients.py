@@ -64,6 +64,25 @@ def test_a_retried_score_is_not_counted_twice(servers):
     assert (repeat.global_rewards < first.global_rewards).all()
 
 
+def test_a_deterministic_server_takes_each_call_as_its_own_version_unless_told(servers):
+    server = servers("reward_server", f"--scenario={SCENARIO}", "--reward=count", "--deterministic")
+    env = imca.make(SCENARIO, 2, seed=3)
+    states, actions, probs, _, _ = rollout(env, 4, seed=3)
+    with imca.RewardClient(server.address) as client:
+        first = client.score(states, actions, probs)
+        # By default a call is a version of its own: the next one sees its counts.
+        second = client.score(states, actions, probs)
+        assert (second.global_rewards < first.global_rewards).all()
+        # Two calls of one version do not see each other's increments.
+        third = client.score(states, actions, probs, policy_version=100)
+        fourth = client.score(states, actions, probs, policy_version=100)
+        assert np.array_equal(third.agent_rewards, fourth.agent_rewards)
+        assert (client.score(states, actions, probs, policy_version=101).global_rewards < fourth.global_rewards).all()
+        for bad in (-1, 1.5, True, "3"):
+            with pytest.raises(ValueError, match="policy_version"):
+                client.score(states, actions, probs, policy_version=bad)
+
+
 BAD_INPUT = [
     (lambda s, a, p: (s[:-1], a, p), ValueError, "states: expected shape (5, 2, *)"),
     (lambda s, a, p: (s, a.astype(np.float32), p), TypeError, "actions: expected an integer array"),
