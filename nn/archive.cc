@@ -3,6 +3,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "base/atomic_file.h"
@@ -23,6 +24,9 @@ void WriteAdam(torch::serialize::OutputArchive& archive, const std::string& key,
   torch::serialize::OutputArchive sub(archive.compilation_unit());
   sub.write(kAdamFormat, torch::tensor(int64_t{1}));
   const auto& groups = adam.param_groups();
+  std::vector<int64_t> sizes;  // Parameters per group: what ReadAdam checks.
+  for (const auto& group : groups) sizes.push_back(static_cast<int64_t>(group.params().size()));
+  sub.write("group_sizes", torch::tensor(sizes, torch::kInt64));
   for (size_t g = 0; g < groups.size(); ++g) {
     const auto& params = groups[g].params();
     for (size_t i = 0; i < params.size(); ++i) {
@@ -46,8 +50,20 @@ void ReadAdam(torch::serialize::InputArchive& archive, const std::string& key, t
     adam.load(sub);  // Written by Optimizer::save (before this format).
     return;
   }
-  adam.state().clear();  // The file's state replaces all of it.
   auto& groups = adam.param_groups();
+  torch::Tensor sizes;
+  sub.read("group_sizes", sizes);
+  const torch::Tensor want = torch::tensor(
+      [&] {
+        std::vector<int64_t> v;
+        for (const auto& group : groups) v.push_back(static_cast<int64_t>(group.params().size()));
+        return v;
+      }(),
+      torch::kInt64);
+  if (!sizes.sizes().equals(want.sizes()) || !torch::equal(sizes.to(torch::kInt64), want)) {
+    throw std::runtime_error(absl::StrCat(key, ": the file's optimiser has other parameter groups than this one"));
+  }
+  adam.state().clear();  // The file's state replaces all of it.
   for (size_t g = 0; g < groups.size(); ++g) {
     const auto& params = groups[g].params();
     for (size_t i = 0; i < params.size(); ++i) {
@@ -63,7 +79,13 @@ void ReadAdam(torch::serialize::InputArchive& archive, const std::string& key, t
       state->step(step.item<int64_t>());
       state->exp_avg(exp_avg);
       state->exp_avg_sq(exp_avg_sq);
-      if (sub.try_read(ParamKey(g, i, "max_exp_avg_sq"), max_exp_avg_sq)) state->max_exp_avg_sq(max_exp_avg_sq);
+      if (sub.try_read(ParamKey(g, i, "max_exp_avg_sq"), max_exp_avg_sq)) {
+        if (!max_exp_avg_sq.sizes().equals(params[i].sizes())) {
+          throw std::runtime_error(absl::StrCat(key, ": max_exp_avg_sq of parameter ", g, ".", i,
+                                                " does not have its shape"));
+        }
+        state->max_exp_avg_sq(max_exp_avg_sq);
+      }
       adam.state()[c10::guts::to_string(params[i].unsafeGetTensorImpl())] = std::move(state);
     }
   }

@@ -36,8 +36,9 @@ struct ScorerConfig {
   // call of one policy version sees the state as the version's first call
   // found it plus its own batch's updates, and the updates of a version
   // reach the state in (actor id, sequence) order, whatever order the calls
-  // came in. Kinds then draw per-call randomness from the call's named
-  // stream (NamedSeed(seed, actor id, sequence)).
+  // came in. Count kinds then draw a call's random permutations from its
+  // own stream (NamedSeed(seed, actor id, sequence)); learned kinds draw
+  // theirs as the deferred updates run, in that order.
   bool deterministic = false;
 };
 

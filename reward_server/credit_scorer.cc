@@ -16,11 +16,14 @@ absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, N
   Clock::time_point lap = Clock::now();
   absl::MutexLock lock(&mu_);
   SecondsOf(*parts, ScorePhase::kLockWait) += Lap(lap);
-  if (config_.deterministic && !dry_run && batch.policy_version > version_) {
+  if (config_.deterministic && !dry_run &&
+      (batch.policy_version != version_ || version_calls_ >= kMaxCallsPerVersion)) {
     IMCA_RETURN_IF_ERROR(novelty_->NewVersion());
     version_ = batch.policy_version;
+    version_calls_ = 0;
     SecondsOf(*parts, ScorePhase::kTrain) += Lap(lap);  // The last version's updates.
   }
+  if (!dry_run) ++version_calls_;
   ScoreSeconds kind{};  // The parts the kind reports.
   out.seconds = &kind;
   const absl::Status status = novelty_->Compute(batch, dry_run, out);
@@ -49,11 +52,13 @@ absl::Status CreditScorer::Save(const std::string& path) const {
 
 absl::Status CreditScorer::Load(const std::string& path) {
   absl::MutexLock lock(&mu_);
+  version_ = kNoVersion;  // The next call starts a version on the loaded state.
   return novelty_->Load(path);
 }
 
 absl::Status CreditScorer::Restore(const std::string& path, bool sync) {
   absl::MutexLock lock(&mu_);
+  version_ = kNoVersion;
   return novelty_->Restore(path, sync);
 }
 

@@ -16,6 +16,10 @@
 
 namespace imca::reward {
 
+// Deterministic scoring: the calls one policy version may hold before the
+// scorer starts another (CreditScorer); a synchronous run makes a handful.
+inline constexpr int64_t kMaxCallsPerVersion = 1024;
+
 // The one credit rule (docs/credit.md) over any Novelty:
 //   none:        every output 0, shares 1/n; the novelty is not called.
 //   shared:      r_i^a = R_i = beta * N(S, U).
@@ -28,9 +32,13 @@ namespace imca::reward {
 // influences a share can fall outside [0, 1]: they are diagnostics only).
 // Thread-safe: one mutex serialises the novelty's calls (the credit rule runs
 // outside it); a snapshot is copied under it and written without it.
-// Deterministic (config.deterministic): the first call of a newer policy
-// version (not a dry run) first has the novelty close the last one
-// (Novelty::NewVersion); a call of an older version counts as the newest's.
+// Deterministic (config.deterministic): a call (not a dry run) of another
+// policy version than the last call's first has the novelty close the last
+// one (Novelty::NewVersion): in a synchronous run versions only grow, and a
+// learner restarted from an older checkpoint, or several clients of their
+// own, then start versions as they change. So does a call after
+// kMaxCallsPerVersion calls of one version, which bounds what a version
+// keeps (a client that never changes its version).
 // ScoreOutput::seconds gets the call's lock wait, the kind's parts and the
 // credit rule's time.
 class CreditScorer : public Scorer {
@@ -63,8 +71,11 @@ class CreditScorer : public Scorer {
   mutable absl::Mutex mu_;
   const bool returns_influences_;
   const std::unique_ptr<Novelty> novelty_ ABSL_PT_GUARDED_BY(mu_);
-  // Deterministic: the newest policy version scored (Novelty::NewVersion).
-  int64_t version_ ABSL_GUARDED_BY(mu_) = std::numeric_limits<int64_t>::min();
+  // Deterministic: the policy version scored last (Novelty::NewVersion), and
+  // the calls (not dry runs) of it so far.
+  static constexpr int64_t kNoVersion = std::numeric_limits<int64_t>::min();
+  int64_t version_ ABSL_GUARDED_BY(mu_) = kNoVersion;
+  int64_t version_calls_ ABSL_GUARDED_BY(mu_) = 0;
   const ScorerConfig config_;
   const int n_;
 };

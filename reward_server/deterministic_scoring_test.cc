@@ -26,11 +26,14 @@ struct Call {
   std::string actor;
   int64_t sequence;
   int64_t version;
+  uint64_t incarnation = 1;
 };
 
 struct Answers {
-  std::map<std::pair<std::string, int64_t>, std::vector<float>> rewards;  // By (actor, sequence).
-  std::string snapshot;                                                   // Save's bytes at the end.
+  // By (actor, sequence, incarnation): the agent rewards, then the influences (eiti, edti).
+  std::map<std::tuple<std::string, int64_t, uint64_t>, std::vector<float>> rewards;
+  std::vector<std::vector<float>> in_order;  // The same, in the order scored.
+  std::string snapshot;                      // Save's bytes at the end.
 };
 
 class DeterministicScoringTest : public ::testing::TestWithParam<std::tuple<std::string, Credit>> {
@@ -51,7 +54,10 @@ class DeterministicScoringTest : public ::testing::TestWithParam<std::tuple<std:
     config.permutation = permutation;  // Random by default: the random streams too.
     config.deterministic = deterministic;
     auto made = MakeScorer(kind, *scenario_, config);
-    EXPECT_TRUE(made.ok()) << made.status();
+    if (!made.ok()) {
+      ADD_FAILURE() << made.status();
+      return {};
+    }
     std::unique_ptr<CreditScorer> scorer = *std::move(made);
     const int n = scenario_->num_agents();
     Answers answers;
@@ -61,10 +67,23 @@ class DeterministicScoringTest : public ::testing::TestWithParam<std::tuple<std:
       TransitionBatch batch{int64_t{u.length()} * u.num_envs(), u.length(), u.num_envs(), u.state_size(),
                             u.states().data(), u.next_states().data(), u.actions().data(), u.action_probs().data(),
                             u.episode_ids().data(), u.terminated().data(), std::hash<std::string>()(call.actor)};
+      // As the service makes it: episodes are per actor incarnation.
+      batch.actor = std::hash<std::string>()(call.actor) ^ (call.incarnation * 0x9e3779b97f4a7c15ULL);
       batch.actor_id = call.actor;
       batch.sequence = call.sequence;
+      batch.incarnation = call.incarnation;
       batch.policy_version = call.version;
-      answers.rewards[{call.actor, call.sequence}] = ::imca::testing::RunScorer(*scorer, batch, n, false).agent_rewards;
+      const int64_t N = batch.size;
+      std::vector<float> global(N), contributions(N * n), shares(N * n), rewards(N * n);
+      std::vector<float> influences(scorer->ReturnsInfluences() ? N * n * n : 0);
+      EXPECT_TRUE(scorer
+                      ->Score(batch, false,
+                              {global.data(), contributions.data(), shares.data(), rewards.data(),
+                               influences.empty() ? nullptr : influences.data()})
+                      .ok());
+      rewards.insert(rewards.end(), influences.begin(), influences.end());
+      answers.rewards[{call.actor, call.sequence, call.incarnation}] = rewards;
+      answers.in_order.push_back(std::move(rewards));
     }
     const std::string path = ::testing::TempDir() + "/deterministic_" + std::to_string(getpid()) + ".bin";
     EXPECT_TRUE(scorer->Save(path).ok());
@@ -97,6 +116,25 @@ TEST_P(DeterministicScoringTest, AnswersAndStateDoNotDependOnArrivalOrder) {
   EXPECT_FALSE(forward.snapshot.empty());
 }
 
+TEST_P(DeterministicScoringTest, CallsOfOneActorIdAndSequenceAreOrderedByIncarnation) {
+  // Two incarnations of one actor id (a restarted actor, or two clients
+  // that kept the default id) number their calls alike.
+  const Answers forward = Run({{"a", 1, 1, 5}, {"a", 1, 1, 9}, {"a", 2, 2, 5}, {"a", 2, 2, 9}}, true);
+  const Answers backward = Run({{"a", 1, 1, 9}, {"a", 1, 1, 5}, {"a", 2, 2, 9}, {"a", 2, 2, 5}}, true);
+  EXPECT_EQ(forward.rewards, backward.rewards);
+  EXPECT_EQ(forward.snapshot, backward.snapshot);
+}
+
+TEST_P(DeterministicScoringTest, AVersionThatGoesBackStartsAVersion) {
+  // A learner restarted from an older checkpoint: versions 1, 2, then 1
+  // again. The third call sees the first two calls' updates, as the first
+  // call of any new version does, and a rerun is the same.
+  const std::vector<Call> calls = {{"a", 1, 1}, {"a", 2, 2}, {"a", 3, 1}, {"a", 4, 2}};
+  const Answers once = Run(calls, true, Permutation::kOff);
+  EXPECT_EQ(once.rewards, Run(calls, true, Permutation::kOff).rewards);
+  EXPECT_EQ(once.in_order, Run(calls, false, Permutation::kOff).in_order);
+}
+
 TEST_P(DeterministicScoringTest, WithoutItTheOrderShows) {
   // The control: the interleavings above do change what a scorer that
   // applies calls as they come answers.
@@ -116,7 +154,10 @@ INSTANTIATE_TEST_SUITE_P(Kinds, DeterministicScoringTest,
                                            std::make_tuple("count", Credit::kIndependent),
                                            std::make_tuple("rnd", Credit::kImca),
                                            std::make_tuple("rnd", Credit::kIndependent),
-                                           std::make_tuple("sf", Credit::kImca)),
+                                           std::make_tuple("sf", Credit::kImca),
+                                           std::make_tuple("sf", Credit::kIndependent),
+                                           std::make_tuple("eiti", Credit::kIndependent),
+                                           std::make_tuple("edti", Credit::kIndependent)),
                          [](const auto& info) {
                            return std::get<0>(info.param) + "_" + CreditName(std::get<1>(info.param));
                          });

@@ -119,6 +119,7 @@ grpc::Status RewardServiceImpl::Score(grpc::ServerContext* context, const v1::Sc
   batch.actor = std::hash<std::string>()(unroll.actor_id()) ^ (unroll.incarnation() * 0x9e3779b97f4a7c15ULL);
   batch.actor_id = unroll.actor_id();
   batch.sequence = unroll.sequence();
+  batch.incarnation = unroll.incarnation();
   batch.policy_version = unroll.policy_version();
   ScoreOutput out;
   out.global_rewards = response->mutable_global_rewards()->mutable_data();

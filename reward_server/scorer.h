@@ -26,10 +26,12 @@ struct TransitionBatch {
   const int64_t* episode_ids = nullptr; // [N]
   const bool* terminated = nullptr;     // [N] or null (unknown: no episode ended)
   uint64_t actor = 0;                   // Hash of the sending actor's id (episode ids are per actor).
-  // The unroll's actor id, sequence and acting policy version: the order in
-  // which a deterministic scorer applies one version's updates.
+  // The unroll's actor id, sequence, actor incarnation and acting policy
+  // version: the order in which a deterministic scorer applies one
+  // version's updates.
   std::string_view actor_id;
   int64_t sequence = 0;
+  uint64_t incarnation = 0;
   int64_t policy_version = 0;
 };
 

@@ -34,7 +34,7 @@ class DeterministicRunTest(unittest.TestCase):
             train(b, "0,40", "--deterministic", str(deterministic).lower(), *flags)
             rows, same = same_run.differences(a, b)
             names = {name for name, _, _ in rows}
-            for wanted in ("policy.pb", "reward_snapshot.bin", "metrics.csv (no wall columns)"):
+            for wanted in ("policy.pb", "reward_snapshot.bin (no journal line)", "metrics.csv (no wall columns)"):
                 self.assertIn(wanted, names)
             self.assertTrue(any(n.startswith("checkpoints/") and n.endswith(".pt") for n in names), names)
             return rows, same
@@ -57,7 +57,7 @@ class DeterministicRunTest(unittest.TestCase):
         rows, same = self.check_pair(deterministic=False)
         different = {n for n, x, y in rows if x != y}
         self.assertIn("metrics.csv (no wall columns)", different)
-        self.assertIn("reward_snapshot.bin", different)
+        self.assertIn("reward_snapshot.bin (no journal line)", different)
 
     def test_deterministic_needs_synchronous_collection(self):
         with tempfile.TemporaryDirectory() as tmp:

@@ -141,6 +141,9 @@ class ExperimentRunTest(unittest.TestCase):
                            if r["statistic"] == "probability_of_improvement_final_success"}
             self.assertEqual(set(improvement), {("shared", "imca"), ("imca", "shared")})
             self.assertAlmostEqual(improvement["shared", "imca"] + improvement["imca", "shared"], 1.0)
+            self.assertEqual({(r["method"], r["over"]) for r in stats_rows
+                              if r["statistic"] == "probability_of_improvement_steps_to_90"},
+                             {("shared", "imca"), ("imca", "shared")})
             for name in ["table.csv", "curves-coop_nav-count.png", "shares-coop_nav-count.png",
                          "profile-coop_nav-count.png", "gifs/coop_nav-count-imca.gif", "grid.json"]:
                 self.assertTrue(os.path.exists(os.path.join(out, name)), name)

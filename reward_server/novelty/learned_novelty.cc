@@ -57,7 +57,7 @@ absl::Status LearnedNovelty::Compute(const TransitionBatch& batch, bool dry_run,
   if (deferring_) {
     deferring_ = false;
     deferred_.push_back([this] { EndRequest(/*dry_run=*/false); });
-    pending_.push_back(Pending{std::string(batch.actor_id), batch.sequence, std::move(deferred_)});
+    pending_.push_back(Pending{std::string(batch.actor_id), batch.sequence, batch.incarnation, std::move(deferred_)});
     deferred_.clear();
   } else {
     EndRequest(dry_run);
@@ -66,19 +66,21 @@ absl::Status LearnedNovelty::Compute(const TransitionBatch& batch, bool dry_run,
 }
 
 absl::Status LearnedNovelty::NewVersion() {
-  std::vector<Pending> pending = std::move(pending_);
-  pending_.clear();
-  std::sort(pending.begin(), pending.end(), [](const Pending& a, const Pending& b) {
-    return std::tie(a.actor_id, a.sequence) < std::tie(b.actor_id, b.sequence);
+  std::sort(pending_.begin(), pending_.end(), [](const Pending& a, const Pending& b) {
+    return std::tie(a.actor_id, a.sequence, a.incarnation) < std::tie(b.actor_id, b.sequence, b.incarnation);
   });
-  try {
-    for (const Pending& call : pending) {
-      for (const auto& update : call.updates) update();
+  size_t done = 0;  // Calls whose updates all ran (or threw: dropped, not retried).
+  absl::Status status;
+  for (; done < pending_.size() && status.ok(); ++done) {
+    try {
+      for (const auto& update : pending_[done].updates) update();
+    } catch (const std::exception& e) {
+      status = absl::InternalError(absl::StrCat(kind_, ": the last version's updates of ", pending_[done].actor_id,
+                                                " #", pending_[done].sequence, ": ", e.what()));
     }
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat(kind_, ": the last version's updates: ", e.what()));
   }
-  return absl::OkStatus();
+  pending_.erase(pending_.begin(), pending_.begin() + done);
+  return status;
 }
 
 absl::StatusOr<std::unique_ptr<Novelty::Snapshot>> LearnedNovelty::TakeSnapshot() {

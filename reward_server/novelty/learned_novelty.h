@@ -31,7 +31,8 @@ class LearnedNovelty : public Novelty {
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) final;
   absl::StatusOr<std::unique_ptr<Snapshot>> TakeSnapshot() final;
   // Deterministic: runs the updates the last version's calls deferred, in
-  // (actor id, sequence) order.
+  // (actor id, sequence, incarnation) order. Errors: INTERNAL if one throws;
+  // the updates after it stay pending (the next call runs them).
   absl::Status NewVersion() final;
 
  protected:
@@ -44,19 +45,25 @@ class LearnedNovelty : public Novelty {
   // call's updates are deferred (Defer) to the next version.
   LearnedNovelty(std::string kind, Credit credit, bool deterministic);
 
-  // Deterministic scoring outside a dry run: the call scores with the state
-  // as it is (the version's start) and leaves it unchanged, handing each
-  // update it would have made to Defer instead; NewVersion runs them, call
-  // by call in (actor id, sequence) order, then EndRequest's.
-  bool deferring() const { return deferring_; }
-  // What a kind's Impl is handed to defer with: Defer while deferring(),
+  // Deterministic scoring outside a dry run: the call scores with the models
+  // as they are (the version's start) and leaves them unchanged, handing
+  // each update it would have made to Defer instead; NewVersion runs them,
+  // call by call in (actor id, sequence, incarnation) order, each call's
+  // then its EndRequest. (Per-episode state keyed by the actor's
+  // incarnation, as SF's visit counts, is not shared between calls and is
+  // kept at once.)
+  // What a kind's Impl is handed to defer with: Defer during such a call,
   // else empty.
   using Deferrer = std::function<void(std::function<void()>)>;
   Deferrer deferrer() {
     return deferring_ ? Deferrer([this](std::function<void()> update) { Defer(std::move(update)); }) : Deferrer();
   }
-  // Keeps `update` (which may throw) for NewVersion. Only while deferring().
+  // Keeps `update` (which may throw) for NewVersion. Only during a deferring
+  // call.
   void Defer(std::function<void()> update) { deferred_.push_back(std::move(update)); }
+  // Drops what the current version deferred (a kind's Load replaces the
+  // models they were for).
+  void DropPending() { pending_.clear(); }
 
   // The joint model's outputs (joint, and contributions for imca), or the
   // local model's (local). May throw; must change no state before it could.
@@ -72,6 +79,7 @@ class LearnedNovelty : public Novelty {
   struct Pending {
     std::string actor_id;
     int64_t sequence = 0;
+    uint64_t incarnation = 0;
     std::vector<std::function<void()>> updates;
   };
 

@@ -203,6 +203,30 @@ struct Model {
   bool normalize;
 };
 
+// Puts a model's input and return moments back as they were when it was
+// made (if given a model), when it goes out of scope.
+class MomentsGuard {
+ public:
+  explicit MomentsGuard(Model* model) : model_(model) {
+    if (model_ != nullptr) {
+      obs_ = model_->obs;
+      ret_ = model_->ret;
+    }
+  }
+  ~MomentsGuard() {
+    if (model_ != nullptr) {
+      model_->obs = obs_;
+      model_->ret = ret_;
+    }
+  }
+  MomentsGuard(const MomentsGuard&) = delete;
+  MomentsGuard& operator=(const MomentsGuard&) = delete;
+
+ private:
+  Model* const model_;
+  nn::RunningMoments obs_, ret_;
+};
+
 // Discounted returns of novelties [T][E][k] along t, per (e, k) stream.
 torch::Tensor StreamReturns(const torch::Tensor& novelty, int64_t T, int64_t E, int64_t k, double gamma) {
   auto n = novelty.reshape({T, E * k}).to(torch::kFloat64);
@@ -284,9 +308,10 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   }
   AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *joint;
-  // Deferring: the call's own moments are used, then put back (Update
-  // replaces the moments' tensors, so the copies stay as they were).
-  const nn::RunningMoments obs_before = model.obs, ret_before = model.ret;
+  // Deferring: the call's own moments are used, then put back, on every
+  // path (Update replaces the moments' tensors, so the copies stay as they
+  // were).
+  const MomentsGuard moments(defer ? &model : nullptr);
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor normalized = model.Normalize(inputs);
   const Model::Pass pass = model.Novelty(normalized);
@@ -335,11 +360,10 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   }
   if (train && !imca) train();
   if (defer) {
-    model.obs = obs_before;
-    model.ret = ret_before;
-    // The step reads states and actions (random permutation): kept with it.
-    std::vector<int32_t> states(batch.states, batch.states + N * stride);
-    std::vector<int32_t> actions(batch.actions, batch.actions + N * n);
+    // The step reads states and actions under permutation random: kept with it.
+    const bool permuted = config.permutation == Permutation::kRandom;
+    std::vector<int32_t> states(permuted ? batch.states : nullptr, permuted ? batch.states + N * stride : nullptr);
+    std::vector<int32_t> actions(permuted ? batch.actions : nullptr, permuted ? batch.actions + N * n : nullptr);
     defer([this, inputs, returns, states = std::move(states), actions = std::move(actions), N, stride] {
       Model& model = *joint;
       if (model.normalize) {
@@ -398,7 +422,7 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   }
   AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *local;
-  const nn::RunningMoments obs_before = model.obs, ret_before = model.ret;  // As ComputeJoint's.
+  const MomentsGuard moments(defer ? &model : nullptr);  // As ComputeJoint's.
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor novelty = model.Novelty(model.Normalize(inputs)).novelty;
   torch::Tensor returns;
@@ -410,8 +434,6 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   const float* nov = scaled.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
   if (defer) {
-    model.obs = obs_before;
-    model.ret = ret_before;
     defer([this, inputs, returns] {
       Model& model = *local;
       if (model.normalize) {
@@ -478,6 +500,7 @@ absl::Status RndNovelty::Load(const std::string& path) {
     const absl::Status legacy = load(kLegacyMagic + impl.tag.substr(std::string(kMagic).size()));
     if (!absl::IsFailedPrecondition(legacy)) loaded = legacy;
   }
+  if (loaded.ok()) DropPending();
   return loaded;
 }
 

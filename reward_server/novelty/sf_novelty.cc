@@ -226,7 +226,8 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
     }
   }
   if (defer) {
-    defer([this, x = inputs.narrow(0, 0, N), next = inputs.narrow(0, N, N), alive = Alive(batch)] {
+    // Copies: the views would keep the counterfactual rows alive too.
+    defer([this, x = inputs.narrow(0, 0, N).clone(), next = inputs.narrow(0, N, N).clone(), alive = Alive(batch)] {
       joint->Train(x, next, alive, sf.gamma);
     });
   } else if (!dry_run) {
@@ -300,9 +301,11 @@ absl::StatusOr<std::string> SfNovelty::Serialize() const {
 absl::Status SfNovelty::Load(const std::string& path) {
   Impl& impl = *impl_;
   const bool with_id = impl.config.permutation == Permutation::kOff;
-  return nn::LoadModels<SfModel>(
+  const absl::Status loaded = nn::LoadModels<SfModel>(
       path, impl.tag, &impl.joint, &impl.local, [&] { return SfModel(impl.encoder.state_dim(), impl.sf, impl.config.seed); },
       [&] { return SfModel(impl.encoder.local_state_dim(with_id), impl.sf, impl.config.seed); }, "requests", &impl.requests);
+  if (loaded.ok()) DropPending();
+  return loaded;
 }
 
 absl::Status SfNovelty::SetLinearForTest(const std::string& net, int layer, const std::vector<float>& weight,

@@ -88,7 +88,7 @@ def parse_args(argv, description=None):
     except ValueError:
         p.error(f"argument --actor-score-delays-ms: not a list of integers: '{args.actor_score_delays_ms}'")
     if any(not 0 <= d <= 60000 for d in args.score_delays) or len(args.score_delays) > args.actors:
-        p.error(f"argument --actor-score-delays-ms: at most --actors values, each in [0, 60000]")
+        p.error("argument --actor-score-delays-ms: at most --actors values, each in [0, 60000]")
     if args.max_restarts < 0:
         p.error("argument --max-restarts: must be >= 0")
     if args.stall_seconds < 10:

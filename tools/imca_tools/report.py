@@ -110,6 +110,12 @@ def fmt_interval(point, low, high, fmt):
     return f"{fmt(point)} [{fmt(low)}, {fmt(high)}]"
 
 
+# The statistics the probability of improvement is reported on, and how
+# stats.md names them.
+POI_STATISTICS = {"final_success": "final success",
+                  "steps_to_90": "env steps to 90% success, fewer is better; never counts as the budget"}
+
+
 def write_stats(out, groups):
     """stats.csv and stats.md: IQMs with intervals per cell, and the
     probability of improvement between the methods of each task."""
@@ -127,17 +133,22 @@ def write_stats(out, groups):
             "success": stats.stratified_bootstrap_ci([success], iqm_of, RESAMPLES, BOOTSTRAP_SEED),
             "steps_to_90": stats.stratified_bootstrap_ci([steps90], iqm_of, RESAMPLES, BOOTSTRAP_SEED),
             "reached_90": sum(s["steps_to_90pct_success"] is not None for s in done)})
-        tasks.setdefault((scenario, reward), []).append((label, success))
+        # Scores where higher is better: final success, and fewer env steps to 90%.
+        tasks.setdefault((scenario, reward), []).append(
+            (label, {"final_success": success, "steps_to_90": [-s for s in steps90]}))
     improvements = []
     for (scenario, reward), methods in tasks.items():
         for i, (x_label, x) in enumerate(methods):
             for y_label, y in methods[i + 1:]:
-                # P(Y > X) = 1 - P(X > Y), on the same resamples.
-                p, low, high = stats.probability_of_improvement_ci([x], [y], RESAMPLES, BOOTSTRAP_SEED)
-                improvements += [
-                    {"scenario": scenario, "reward": reward, "method": x_label, "over": y_label, "p": (p, low, high)},
-                    {"scenario": scenario, "reward": reward, "method": y_label, "over": x_label,
-                     "p": (1 - p, 1 - high, 1 - low)}]
+                for statistic in POI_STATISTICS:
+                    # P(Y > X) = 1 - P(X > Y), on the same resamples.
+                    p, low, high = stats.probability_of_improvement_ci([x[statistic]], [y[statistic]], RESAMPLES,
+                                                                       BOOTSTRAP_SEED)
+                    improvements += [
+                        {"scenario": scenario, "reward": reward, "method": x_label, "over": y_label,
+                         "statistic": statistic, "p": (p, low, high)},
+                        {"scenario": scenario, "reward": reward, "method": y_label, "over": x_label,
+                         "statistic": statistic, "p": (1 - p, 1 - high, 1 - low)}]
     with open(os.path.join(out, "stats.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["scenario", "reward", "method", "over", "runs", "budget", "statistic", "point", "low", "high"])
@@ -147,7 +158,7 @@ def write_stats(out, groups):
                             f"iqm_{'final_success' if name == 'success' else name}", *c[name]])
         for i in improvements:
             w.writerow([i["scenario"], i["reward"], i["method"], i["over"], "", "",
-                        "probability_of_improvement_final_success", *i["p"]])
+                        f"probability_of_improvement_{i['statistic']}", *i["p"]])
     lines = [f"Interquartile means (IQM) over runs, with 95% percentile intervals of {RESAMPLES:,} stratified "
              f"bootstrap resamples (seed {BOOTSTRAP_SEED}); imca_tools.stats.", "",
              "| scenario | reward | method | runs | final success: IQM [95% CI] "
@@ -166,15 +177,16 @@ def write_stats(out, groups):
         if len(methods) < 2:
             continue
         labels = [label for label, _ in methods]
-        lines += ["", f"Probability of improvement on {scenario} + {reward} (final success): "
-                  "P(a run of the row's method beats one of the column's), ties count half, [95% CI].", "",
-                  "| | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
-        table = {(i["method"], i["over"]): i["p"] for i in improvements
-                 if (i["scenario"], i["reward"]) == (scenario, reward)}
-        for x_label in labels:
-            row = [fmt_interval(*table[x_label, y_label], lambda v: f"{v:.2f}") if x_label != y_label else "-"
-                   for y_label in labels]
-            lines.append(f"| {x_label} | " + " | ".join(row) + " |")
+        for statistic, what in POI_STATISTICS.items():
+            lines += ["", f"Probability of improvement on {scenario} + {reward} ({what}): "
+                      "P(a run of the row's method beats one of the column's), ties count half, [95% CI].", "",
+                      "| | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
+            table = {(i["method"], i["over"]): i["p"] for i in improvements
+                     if (i["scenario"], i["reward"], i["statistic"]) == (scenario, reward, statistic)}
+            for x_label in labels:
+                row = [fmt_interval(*table[x_label, y_label], lambda v: f"{v:.2f}") if x_label != y_label else "-"
+                       for y_label in labels]
+                lines.append(f"| {x_label} | " + " | ".join(row) + " |")
     with open(os.path.join(out, "stats.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
 

@@ -4,10 +4,14 @@
     python3 -m imca_tools.same_run RUN_A RUN_B
 
 compares metrics.csv without its wall-clock columns, policy.pb, the reward
-snapshot, every checkpoint's state (.pt) and its metadata (.meta) without
-the wall clock and the actors' incarnations (each process draws its own, so
-that a restarted actor is never taken for its predecessor). Prints a sha256
-per file and run, and exits 1 on any difference.
+snapshot (a count snapshot without its journal line, whose epoch counts the
+periodic snapshots taken: every --snapshot-every seconds), and the state
+(.pt) and metadata (.meta, without the wall clock and the actors'
+incarnations, which each process draws so that a restarted actor is never
+taken for its predecessor) of every checkpoint both runs kept, the final
+one included (checkpoints are also taken every --checkpoint-seconds, so
+which ones a run keeps depends on time). Prints a sha256 per file and run,
+and exits 1 on any difference.
 """
 import csv
 import hashlib
@@ -37,29 +41,52 @@ def meta_without_process(path):
     return re.sub(r"^\s*(wall_seconds|incarnation): .*\n", "", text, flags=re.M).encode()
 
 
+def snapshot_without_journal(data):
+    """A count snapshot (a tag line, then "journal <epoch> <transitions>",
+    then the tables) without its journal line; other snapshots as they are."""
+    lines = data.split(b"\n", 2)
+    if len(lines) == 3 and lines[1].startswith(b"journal "):
+        return lines[0] + b"\n" + lines[2]
+    return data
+
+
 def compared_files(run_dir):
-    """{name: bytes compared} of a run folder."""
+    """{name: bytes compared} of a run folder, and the name of its final
+    checkpoint's state (or None)."""
     files = {"metrics.csv (no wall columns)": metrics_without_wall(os.path.join(run_dir, "metrics.csv"))}
-    for name in ("policy.pb", "reward_snapshot.bin"):
-        path = os.path.join(run_dir, name)
-        if os.path.exists(path):
-            with open(path, "rb") as f:
-                files[name] = f.read()
+    path = os.path.join(run_dir, "policy.pb")
+    if os.path.exists(path):
+        with open(path, "rb") as f:
+            files["policy.pb"] = f.read()
+    path = os.path.join(run_dir, "reward_snapshot.bin")
+    if os.path.exists(path):
+        with open(path, "rb") as f:
+            files["reward_snapshot.bin (no journal line)"] = snapshot_without_journal(f.read())
     checkpoints = os.path.join(run_dir, "checkpoints")
+    final = None
     for name in sorted(os.listdir(checkpoints)) if os.path.isdir(checkpoints) else []:
         path = os.path.join(checkpoints, name)
         if name.endswith(".pt"):
             with open(path, "rb") as f:
                 files["checkpoints/" + name] = f.read()
+            final = "checkpoints/" + name  # Names sort by version.
         elif name.endswith(".meta"):
             files["checkpoints/" + name + " (no wall clock, incarnations)"] = meta_without_process(path)
-    return files
+    return files, final
 
 
 def differences(run_a, run_b):
     """[(file, sha256 in a or None, sha256 in b or None)] for every compared
-    file, and whether all are equal."""
-    a, b = compared_files(run_a), compared_files(run_b)
+    file, and whether all are equal. A checkpoint only one run kept is left
+    out, unless it is that run's final one."""
+    (a, final_a), (b, final_b) = compared_files(run_a), compared_files(run_b)
+    finals = {name[:-len(".pt")] for name in (final_a, final_b) if name}
+    for name in set(a) ^ set(b):
+        if name.startswith("checkpoints/") and not any(name.startswith(stem + ".") for stem in finals):
+            a.pop(name, None)
+            b.pop(name, None)
+    if not finals:
+        a["checkpoints/ (a final checkpoint)"] = b["checkpoints/ (a final checkpoint)"] = None
     digest = lambda data: hashlib.sha256(data).hexdigest() if data is not None else None
     rows = [(name, digest(a.get(name)), digest(b.get(name))) for name in sorted(set(a) | set(b))]
     return rows, all(x == y and x is not None for _, x, y in rows)
