@@ -8,6 +8,8 @@
 #include <random>
 #include <string_view>
 
+#include "base/hash.h"
+
 namespace imca {
 
 // xoshiro256** seeded by splitmix64: fast, small, reproducible across
@@ -58,8 +60,7 @@ class Rng {
 // actor's Score call: its id and sequence): the same for the same three
 // values in any process, unrelated for different ones.
 inline uint64_t NamedSeed(uint64_t seed, std::string_view name, uint64_t index) {
-  uint64_t h = 0xcbf29ce484222325ULL;  // FNV-1a of the name.
-  for (unsigned char c : name) h = (h ^ c) * 0x100000001b3ULL;
+  uint64_t h = Fnv1a(name);
   uint64_t state = seed;
   const uint64_t a = Rng::SplitMix64(state);
   uint64_t mixed = a ^ Rng::SplitMix64(h) ^ (index * 0x9e3779b97f4a7c15ULL);

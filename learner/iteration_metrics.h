@@ -51,6 +51,9 @@ struct Column {
   Export exported;
   const char* family;     // Prometheus name, if exported.
   const char* algorithm = nullptr;  // --algo name of the one algorithm it belongs to, or null.
+  // Measures time, not training: differs between runs that train alike
+  // (what a deterministic run's comparison leaves out).
+  bool wall_clock = false;
 };
 // Every column of every algorithm.
 const std::vector<Column>& IterationColumns();

@@ -306,6 +306,7 @@ std::string ListJson() {
                         .Add("help", c.help)
                         .Raw("prometheus", c.family != nullptr ? JsonString(c.family) : "null")
                         .Raw("algorithm", c.algorithm != nullptr ? JsonString(c.algorithm) : "null")
+                        .Add("wall_clock", c.wall_clock)
                         .Text());
   }
   return JsonObject()

@@ -18,19 +18,27 @@ std::string ParamKey(size_t group, size_t param, const char* field) {
   return absl::StrCat(group, ".", param, ".", field);
 }
 
+// Where LibTorch's Adam keeps a parameter's state (adam.cpp's lookup).
+std::string StateKey(const torch::Tensor& param) { return c10::guts::to_string(param.unsafeGetTensorImpl()); }
+
+// The parameters in each of `adam`'s groups.
+std::vector<int64_t> GroupSizes(const torch::optim::Adam& adam) {
+  std::vector<int64_t> sizes;
+  for (const auto& group : adam.param_groups()) sizes.push_back(static_cast<int64_t>(group.params().size()));
+  return sizes;
+}
+
 }  // namespace
 
 void WriteAdam(torch::serialize::OutputArchive& archive, const std::string& key, const torch::optim::Adam& adam) {
   torch::serialize::OutputArchive sub(archive.compilation_unit());
   sub.write(kAdamFormat, torch::tensor(int64_t{1}));
+  sub.write("group_sizes", torch::tensor(GroupSizes(adam), torch::kInt64));  // What ReadAdam checks.
   const auto& groups = adam.param_groups();
-  std::vector<int64_t> sizes;  // Parameters per group: what ReadAdam checks.
-  for (const auto& group : groups) sizes.push_back(static_cast<int64_t>(group.params().size()));
-  sub.write("group_sizes", torch::tensor(sizes, torch::kInt64));
   for (size_t g = 0; g < groups.size(); ++g) {
     const auto& params = groups[g].params();
     for (size_t i = 0; i < params.size(); ++i) {
-      const auto found = adam.state().find(c10::guts::to_string(params[i].unsafeGetTensorImpl()));
+      const auto found = adam.state().find(StateKey(params[i]));
       if (found == adam.state().end()) continue;  // No step taken with it yet.
       const auto& state = static_cast<const torch::optim::AdamParamState&>(*found->second);
       sub.write(ParamKey(g, i, "step"), torch::tensor(state.step()));
@@ -50,20 +58,14 @@ void ReadAdam(torch::serialize::InputArchive& archive, const std::string& key, t
     adam.load(sub);  // Written by Optimizer::save (before this format).
     return;
   }
-  auto& groups = adam.param_groups();
   torch::Tensor sizes;
   sub.read("group_sizes", sizes);
-  const torch::Tensor want = torch::tensor(
-      [&] {
-        std::vector<int64_t> v;
-        for (const auto& group : groups) v.push_back(static_cast<int64_t>(group.params().size()));
-        return v;
-      }(),
-      torch::kInt64);
-  if (!sizes.sizes().equals(want.sizes()) || !torch::equal(sizes.to(torch::kInt64), want)) {
+  sizes = sizes.to(torch::kInt64).contiguous();
+  if (std::vector<int64_t>(sizes.data_ptr<int64_t>(), sizes.data_ptr<int64_t>() + sizes.numel()) != GroupSizes(adam)) {
     throw std::runtime_error(absl::StrCat(key, ": the file's optimiser has other parameter groups than this one"));
   }
   adam.state().clear();  // The file's state replaces all of it.
+  const auto& groups = adam.param_groups();
   for (size_t g = 0; g < groups.size(); ++g) {
     const auto& params = groups[g].params();
     for (size_t i = 0; i < params.size(); ++i) {
@@ -86,7 +88,7 @@ void ReadAdam(torch::serialize::InputArchive& archive, const std::string& key, t
         }
         state->max_exp_avg_sq(max_exp_avg_sq);
       }
-      adam.state()[c10::guts::to_string(params[i].unsafeGetTensorImpl())] = std::move(state);
+      adam.state()[StateKey(params[i])] = std::move(state);
     }
   }
 }

@@ -18,6 +18,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "base/atomic_file.h"
+#include "base/hash.h"
 #include "base/status_macros.h"
 
 namespace imca::reward {
@@ -65,15 +66,6 @@ constexpr uint32_t kRecordMagic = 0x4a434d49;  // "IMCJ"
 constexpr char kJournalHeader[] = "IMCA-JOURNAL-1 ";
 constexpr char kEpochLine[] = "journal ";
 constexpr size_t kEntryBytes = 1 + 8 + 4;
-
-uint64_t Fnv1a(const char* data, size_t size) {
-  uint64_t h = 0xcbf29ce484222325ULL;
-  for (size_t i = 0; i < size; ++i) {
-    h ^= static_cast<unsigned char>(data[i]);
-    h *= 0x100000001b3ULL;
-  }
-  return h;
-}
 
 template <typename T>
 void Put(std::string* out, T value) {
@@ -173,7 +165,7 @@ absl::StatusOr<int64_t> Replay(const std::string& path, const std::string& tag, 
       break;
     }
     payload.resize(bytes);
-    if (!in.read(payload.data(), bytes) || Fnv1a(payload.data(), bytes) != Take<uint64_t>(head + 8)) {
+    if (!in.read(payload.data(), bytes) || Fnv1a(payload) != Take<uint64_t>(head + 8)) {
       std::fprintf(stderr, "reward_server: %s: torn record after %lld records (a write cut off)\n",
                    path.c_str(), static_cast<long long>(records));
       break;
@@ -230,7 +222,7 @@ absl::Status CountStore::Commit(int64_t transitions) {
   Put(&record, transitions);
   record += pending_;
   pending_.clear();
-  const uint64_t checksum = Fnv1a(record.data() + 16, record.size() - 16);
+  const uint64_t checksum = Fnv1a({record.data() + 16, record.size() - 16});
   std::memcpy(record.data() + 8, &checksum, sizeof(checksum));
   // One write of the whole record (O_APPEND): a kill -9 after it returns
   // loses nothing, the page cache belongs to the kernel.

@@ -42,23 +42,20 @@ absl::Status LearnedNovelty::Compute(const TransitionBatch& batch, bool dry_run,
     return absl::InternalError(absl::StrCat(kind_, ": no ", local ? "local" : "joint", " model in credit mode ",
                                             CreditName(credit_)));
   }
-  deferring_ = deterministic_ && !dry_run;
-  deferred_.clear();
+  Deferred updates;
+  Deferred* deferred = deterministic_ && !dry_run ? &updates : nullptr;
   try {
     if (local) {
-      ComputeLocal(batch, dry_run, out);
+      ComputeLocal(batch, dry_run, out, deferred);
     } else {
-      ComputeJoint(batch, dry_run, out);
+      ComputeJoint(batch, dry_run, out, deferred);
     }
   } catch (const std::exception& e) {
-    deferring_ = false;
     return absl::InternalError(absl::StrCat(kind_, ": ", e.what()));
   }
-  if (deferring_) {
-    deferring_ = false;
-    deferred_.push_back([this] { EndRequest(/*dry_run=*/false); });
-    pending_.push_back(Pending{std::string(batch.actor_id), batch.sequence, batch.incarnation, std::move(deferred_)});
-    deferred_.clear();
+  if (deferred != nullptr) {
+    updates.push_back([this] { EndRequest(/*dry_run=*/false); });
+    pending_.push_back(Pending{std::string(batch.actor_id), batch.sequence, batch.incarnation, std::move(updates)});
   } else {
     EndRequest(dry_run);
   }

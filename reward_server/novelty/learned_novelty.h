@@ -42,33 +42,28 @@ class LearnedNovelty : public Novelty {
                                    double gamma);
 
   // `kind` names the novelty in errors ("rnd", "sf"). `deterministic`: a
-  // call's updates are deferred (Defer) to the next version.
+  // call's updates are deferred to the next version (Deferred).
   LearnedNovelty(std::string kind, Credit credit, bool deterministic);
 
   // Deterministic scoring outside a dry run: the call scores with the models
-  // as they are (the version's start) and leaves them unchanged, handing
-  // each update it would have made to Defer instead; NewVersion runs them,
-  // call by call in (actor id, sequence, incarnation) order, each call's
-  // then its EndRequest. (Per-episode state keyed by the actor's
-  // incarnation, as SF's visit counts, is not shared between calls and is
-  // kept at once.)
-  // What a kind's Impl is handed to defer with: Defer during such a call,
-  // else empty.
-  using Deferrer = std::function<void(std::function<void()>)>;
-  Deferrer deferrer() {
-    return deferring_ ? Deferrer([this](std::function<void()> update) { Defer(std::move(update)); }) : Deferrer();
-  }
-  // Keeps `update` (which may throw) for NewVersion. Only during a deferring
-  // call.
-  void Defer(std::function<void()> update) { deferred_.push_back(std::move(update)); }
+  // as they are (the version's start) and leaves them unchanged, appending
+  // each update it would have made (which may throw) to the Deferred it is
+  // given instead; NewVersion runs them, call by call in (actor id,
+  // sequence, incarnation) order, each call's then its EndRequest.
+  // (Per-episode state keyed by the actor's incarnation, as SF's visit
+  // counts, is not shared between calls and is kept at once.)
+  using Deferred = std::vector<std::function<void()>>;
   // Drops what the current version deferred (a kind's Load replaces the
   // models they were for).
   void DropPending() { pending_.clear(); }
 
   // The joint model's outputs (joint, and contributions for imca), or the
   // local model's (local). May throw; must change no state before it could.
-  virtual void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) = 0;
-  virtual void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) = 0;
+  // `deferred`: null, or where a deterministic call's updates go (Deferred).
+  virtual void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                            Deferred* deferred) = 0;
+  virtual void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                            Deferred* deferred) = 0;
   // After each request that succeeded (e.g. a target network's period).
   virtual void EndRequest(bool dry_run) {}
   // All learned state as a snapshot file's bytes. Errors: INTERNAL.
@@ -80,15 +75,13 @@ class LearnedNovelty : public Novelty {
     std::string actor_id;
     int64_t sequence = 0;
     uint64_t incarnation = 0;
-    std::vector<std::function<void()>> updates;
+    Deferred updates;
   };
 
   const std::string kind_;
   const Credit credit_;
   const bool deterministic_;
-  bool deferring_ = false;                     // During a deterministic call.
-  std::vector<std::function<void()>> deferred_;  // The current call's.
-  std::vector<Pending> pending_;               // The current version's calls'.
+  std::vector<Pending> pending_;  // The current version's calls'.
 };
 
 }  // namespace imca::reward

@@ -260,12 +260,12 @@ struct RndNovelty::Impl {
     }
   }
 
-  // `defer` (deterministic scoring, LearnedNovelty::deferrer): score with
-  // the models and moments as they are, and hand it the updates.
+  // `deferred` (deterministic scoring, LearnedNovelty::Deferred): score with
+  // the models and moments as they are, and append the updates to it.
   void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                    const LearnedNovelty::Deferrer& defer);
+                    LearnedNovelty::Deferred* deferred);
   void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                    const LearnedNovelty::Deferrer& defer);
+                    LearnedNovelty::Deferred* deferred);
   void TrainJoint(const TransitionBatch& batch, const torch::Tensor& inputs);
 
   const int n;
@@ -283,7 +283,7 @@ struct RndNovelty::Impl {
 };
 
 void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                                    const LearnedNovelty::Deferrer& defer) {
+                                    LearnedNovelty::Deferred* deferred) {
   const int64_t N = batch.size, D = encoder.joint_dim(), A = num_actions;
   const bool imca = out.contributions != nullptr;
   Clock::time_point lap = Clock::now();
@@ -311,7 +311,7 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   // Deferring: the call's own moments are used, then put back, on every
   // path (Update replaces the moments' tensors, so the copies stay as they
   // were).
-  const MomentsGuard moments(defer ? &model : nullptr);
+  const MomentsGuard moments(deferred != nullptr ? &model : nullptr);
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor normalized = model.Normalize(inputs);
   const Model::Pass pass = model.Novelty(normalized);
@@ -331,7 +331,7 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
   // that step.
   double train_seconds = 0;
   std::function<void()> train;
-  if (!dry_run && !defer) {
+  if (!dry_run && deferred == nullptr) {
     train = [&] {
       Clock::time_point start = Clock::now();
       TrainJoint(batch, inputs);
@@ -359,12 +359,12 @@ void RndNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, 
     }
   }
   if (train && !imca) train();
-  if (defer) {
+  if (deferred != nullptr) {
     // The step reads states and actions under permutation random: kept with it.
     const bool permuted = config.permutation == Permutation::kRandom;
     std::vector<int32_t> states(permuted ? batch.states : nullptr, permuted ? batch.states + N * stride : nullptr);
     std::vector<int32_t> actions(permuted ? batch.actions : nullptr, permuted ? batch.actions + N * n : nullptr);
-    defer([this, inputs, returns, states = std::move(states), actions = std::move(actions), N, stride] {
+    deferred->push_back([this, inputs, returns, states = std::move(states), actions = std::move(actions), N, stride] {
       Model& model = *joint;
       if (model.normalize) {
         model.obs.Update(inputs);
@@ -408,7 +408,7 @@ void RndNovelty::Impl::TrainJoint(const TransitionBatch& batch, const torch::Ten
 }
 
 void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                                    const LearnedNovelty::Deferrer& defer) {
+                                    LearnedNovelty::Deferred* deferred) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_dim(with_id);
   Clock::time_point lap = Clock::now();
@@ -422,7 +422,7 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   }
   AddPart(out, ScorePhase::kEncode, Lap(lap));
   Model& model = *local;
-  const MomentsGuard moments(defer ? &model : nullptr);  // As ComputeJoint's.
+  const MomentsGuard moments(deferred != nullptr ? &model : nullptr);  // As ComputeJoint's.
   if (!dry_run && model.normalize) model.obs.Update(inputs);
   const torch::Tensor novelty = model.Novelty(model.Normalize(inputs)).novelty;
   torch::Tensor returns;
@@ -433,8 +433,8 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
   const torch::Tensor scaled = (novelty / model.RewardStd()).contiguous();
   const float* nov = scaled.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
-  if (defer) {
-    defer([this, inputs, returns] {
+  if (deferred != nullptr) {
+    deferred->push_back([this, inputs, returns] {
       Model& model = *local;
       if (model.normalize) {
         model.obs.Update(inputs);
@@ -468,12 +468,14 @@ RndNovelty::RndNovelty(std::unique_ptr<Impl> impl)
     : LearnedNovelty("rnd", impl->config.credit, impl->config.deterministic), impl_(std::move(impl)) {}
 RndNovelty::~RndNovelty() = default;
 
-void RndNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeJoint(batch, dry_run, out, deferrer());
+void RndNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                              Deferred* deferred) {
+  impl_->ComputeJoint(batch, dry_run, out, deferred);
 }
 
-void RndNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeLocal(batch, dry_run, out, deferrer());
+void RndNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                              Deferred* deferred) {
+  impl_->ComputeLocal(batch, dry_run, out, deferred);
 }
 
 void RndNovelty::FillStats(v1::RewardStats* stats) const {

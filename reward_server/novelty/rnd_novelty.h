@@ -57,8 +57,10 @@ class RndNovelty final : public LearnedNovelty {
                                 const std::vector<float>& bias);
 
  private:
-  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
-  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    Deferred* deferred) override;
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    Deferred* deferred) override;
   absl::StatusOr<std::string> Serialize() const override;
 
   struct Impl;

@@ -155,12 +155,12 @@ struct SfNovelty::Impl {
     encoder.EncodeState(state, order, x.data());
     return torch::tensor(x).unsqueeze(0);
   }
-  // `defer` (deterministic scoring, LearnedNovelty::deferrer): score with
-  // psi as it is and hand it the training step.
+  // `deferred` (deterministic scoring, LearnedNovelty::Deferred): score with
+  // psi as it is and append the training step to it.
   void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                    const LearnedNovelty::Deferrer& defer);
+                    LearnedNovelty::Deferred* deferred);
   void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                    const LearnedNovelty::Deferrer& defer);
+                    LearnedNovelty::Deferred* deferred);
 
   const int n;
   const ScorerConfig config;
@@ -176,7 +176,7 @@ struct SfNovelty::Impl {
 };
 
 void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                                   const LearnedNovelty::Deferrer& defer) {
+                                   LearnedNovelty::Deferred* deferred) {
   const int64_t N = batch.size, D = encoder.state_dim(), K = batch.state_size;
   const bool imca = out.contributions != nullptr;
   // Rows: S_t [N], S_{t+1} [N], then (imca) S_t with only agent a moved [N][n].
@@ -225,11 +225,10 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
       out.agent_divisor[i * n + a] = std::sqrt(static_cast<double>(visits));
     }
   }
-  if (defer) {
+  if (deferred != nullptr) {
     // Copies: the views would keep the counterfactual rows alive too.
-    defer([this, x = inputs.narrow(0, 0, N).clone(), next = inputs.narrow(0, N, N).clone(), alive = Alive(batch)] {
-      joint->Train(x, next, alive, sf.gamma);
-    });
+    deferred->push_back([this, x = inputs.narrow(0, 0, N).clone(), next = inputs.narrow(0, N, N).clone(),
+                         alive = Alive(batch)] { joint->Train(x, next, alive, sf.gamma); });
   } else if (!dry_run) {
     lap = Clock::now();
     model.Train(inputs.narrow(0, 0, N), inputs.narrow(0, N, N), Alive(batch), sf.gamma);
@@ -238,7 +237,7 @@ void SfNovelty::Impl::ComputeJoint(const TransitionBatch& batch, bool dry_run, c
 }
 
 void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
-                                   const LearnedNovelty::Deferrer& defer) {
+                                   LearnedNovelty::Deferred* deferred) {
   const bool with_id = config.permutation == Permutation::kOff;
   const int64_t N = batch.size, D = encoder.local_state_dim(with_id), K = batch.state_size;
   Clock::time_point lap = Clock::now();
@@ -256,8 +255,8 @@ void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, c
   const torch::Tensor novelty = (psi.narrow(0, N * n, N * n) - psi.narrow(0, 0, N * n)).pow(2).sum(1).contiguous();
   const float* nov = novelty.data_ptr<float>();
   std::copy(nov, nov + N * n, out.local);
-  if (defer) {
-    defer([this, x = inputs.narrow(0, 0, N * n), next = inputs.narrow(0, N * n, N * n),
+  if (deferred != nullptr) {
+    deferred->push_back([this, x = inputs.narrow(0, 0, N * n), next = inputs.narrow(0, N * n, N * n),
            alive = Alive(batch).repeat_interleave(n)] { local->Train(x, next, alive, sf.gamma); });
   } else if (!dry_run) {
     lap = Clock::now();
@@ -281,12 +280,14 @@ SfNovelty::SfNovelty(std::unique_ptr<Impl> impl)
 void SfNovelty::EndRequest(bool dry_run) { impl_->EndRequest(dry_run); }
 SfNovelty::~SfNovelty() = default;
 
-void SfNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeJoint(batch, dry_run, out, deferrer());
+void SfNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                             Deferred* deferred) {
+  impl_->ComputeJoint(batch, dry_run, out, deferred);
 }
 
-void SfNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
-  impl_->ComputeLocal(batch, dry_run, out, deferrer());
+void SfNovelty::ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                             Deferred* deferred) {
+  impl_->ComputeLocal(batch, dry_run, out, deferred);
 }
 
 void SfNovelty::FillStats(v1::RewardStats* stats) const {

@@ -53,8 +53,10 @@ class SfNovelty final : public LearnedNovelty {
   std::vector<float> PsiForTest(const int32_t* state) const;
 
  private:
-  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
-  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
+  void ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    Deferred* deferred) override;
+  void ComputeLocal(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,
+                    Deferred* deferred) override;
   void EndRequest(bool dry_run) override;
   absl::StatusOr<std::string> Serialize() const override;
 

@@ -95,17 +95,15 @@ def presets():
                            "count novelty and credit none/shared/imca against EITI and EDTI (3M env steps), and "
                            "coop_nav with count novelty, credit shared and imca with permutation "
                            "off/random/canonical (2M)",
-            "entries": [{"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
-                         "permutation": "off", "seed": list(range(1, 11)), "steps": 3_000_000,
-                         "flags": {"deterministic": True}},
-                        {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
-                         "permutation": "off", "seed": list(range(1, 11)), "steps": 3_000_000,
-                         "flags": {"deterministic": True}},
-                        {"scenario": "coop_nav", "reward": "count", "credit": "shared", "permutation": "off",
-                         "seed": list(range(1, 11)), "steps": 2_000_000, "flags": {"deterministic": True}},
-                        {"scenario": "coop_nav", "reward": "count", "credit": "imca",
-                         "permutation": binaries.facts()["permutations"], "seed": list(range(1, 11)),
-                         "steps": 2_000_000, "flags": {"deterministic": True}}],
+            "entries": [dict(entry, seed=list(range(1, 11)), flags={"deterministic": True}) for entry in [
+                {"scenario": ["pass", "secret_room"], "reward": "count", "credit": ["none", "shared", "imca"],
+                 "permutation": "off", "steps": 3_000_000},
+                {"scenario": ["pass", "secret_room"], "reward": ["eiti", "edti"], "credit": "independent",
+                 "permutation": "off", "steps": 3_000_000},
+                {"scenario": "coop_nav", "reward": "count", "credit": "shared", "permutation": "off",
+                 "steps": 2_000_000},
+                {"scenario": "coop_nav", "reward": "count", "credit": "imca",
+                 "permutation": binaries.facts()["permutations"], "steps": 2_000_000}]],
         },
         "quick": {
             "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",

@@ -20,16 +20,20 @@ import os
 import re
 import sys
 
+from . import binaries
 
-def is_wall_column(name):
-    """metrics.csv's columns that measure time, not training."""
-    return name in ("wall_seconds", "env_steps_per_sec") or name.startswith("ms_")
+
+def wall_clock_columns():
+    """metrics.csv's columns that measure time, not training (the learner's
+    column table says which, `learner --list`)."""
+    return {c["name"] for c in binaries.facts()["metrics_columns"] if c["wall_clock"]}
 
 
 def metrics_without_wall(path):
+    wall = wall_clock_columns()
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
-    keep = [i for i, name in enumerate(rows[0]) if not is_wall_column(name)] if rows else []
+    keep = [i for i, name in enumerate(rows[0]) if name not in wall] if rows else []
     out = io.StringIO()
     csv.writer(out, lineterminator="\n").writerows([row[i] for i in keep] for row in rows)
     return out.getvalue().encode()
@@ -101,7 +105,11 @@ def main(argv=None):
         if not os.path.isfile(os.path.join(run, "metrics.csv")):
             print(f"imca same_run: '{run}' holds no run (no metrics.csv)", file=sys.stderr)
             return 2
-    rows, same = differences(*argv)
+    try:
+        rows, same = differences(*argv)
+    except binaries.LaunchError as e:
+        print(f"imca same_run: {e}", file=sys.stderr)
+        return 2
     for name, x, y in rows:
         print(f"{'same' if x == y else 'DIFFERENT'}  {name}  {x or '(missing)'}  {y or '(missing)'}")
     return 0 if same else 1
