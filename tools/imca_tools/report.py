@@ -12,8 +12,9 @@ And stats.md / stats.csv, the statistics reviewers now ask for
 90% (a run that never got there counted as the budget) with stratified
 bootstrap 95% intervals; per task the probability that each method's run
 beats each other's, with its interval; and a performance profile per task
-(profile-SCENARIO-REWARD.png: the fraction of runs above each final
-success).
+(profile-SCENARIO-REWARD.png, or profile-SCENARIO.png where the task's
+methods use several reward kinds: the fraction of runs above each final
+success). A task is a scenario at one budget (tasks_of).
 """
 import csv
 import math
@@ -116,10 +117,41 @@ POI_STATISTICS = {"final_success": "final success",
                   "steps_to_90": "env steps to 90% success, fewer is better; never counts as the budget"}
 
 
+def tasks_of(groups):
+    """The tasks methods are compared on, in groups' order: {(scenario,
+    budget): {"name", "file", "scenario", "budget", "reward" (its one reward
+    kind, or empty), "methods": {group key: label}}}. A task is a
+    scenario at one budget, whatever the novelty: a reward kind is part of
+    the method (count imca against EDTI on pass is the comparison). Where a
+    task's methods use several reward kinds, each label names its reward
+    ("count imca"; "edti" for a method named by its reward)."""
+    tasks = {}
+    for key, members in groups.items():
+        tasks.setdefault((key[0], members[0][0]["steps"]), []).append(key)
+    budgets = {}
+    for scenario, budget in tasks:
+        budgets[scenario] = budgets.get(scenario, 0) + 1
+    named = {}
+    for (scenario, budget), keys in tasks.items():
+        rewards = sorted({reward for _, reward, _ in keys})
+        if len(rewards) == 1:
+            name, file = f"{scenario} + {rewards[0]}", f"{scenario}-{rewards[0]}"
+            labels = {key: key[2] for key in keys}
+        else:
+            name, file = scenario, scenario
+            labels = {key: key[2] if key[2].split(" ")[0] == key[1] else f"{key[1]} {key[2]}" for key in keys}
+        if budgets[scenario] > 1:
+            name, file = f"{name} at {budget:,} env steps", f"{file}-{budget // 1000}k"
+        named[scenario, budget] = {"name": name, "file": file, "methods": labels, "scenario": scenario,
+                                   "budget": budget, "reward": rewards[0] if len(rewards) == 1 else ""}
+    return named
+
+
 def write_stats(out, groups):
     """stats.csv and stats.md: IQMs with intervals per cell, and the
-    probability of improvement between the methods of each task."""
-    cells, tasks = [], {}
+    probability of improvement between the methods of each task
+    (tasks_of)."""
+    cells, scores = [], {}
     for (scenario, reward, label), members in groups.items():
         done = [s for _, s in members if s is not None]
         if not done:
@@ -134,21 +166,24 @@ def write_stats(out, groups):
             "steps_to_90": stats.stratified_bootstrap_ci([steps90], iqm_of, RESAMPLES, BOOTSTRAP_SEED),
             "reached_90": sum(s["steps_to_90pct_success"] is not None for s in done)})
         # Scores where higher is better: final success, and fewer env steps to 90%.
-        tasks.setdefault((scenario, reward), []).append(
-            (label, {"final_success": success, "steps_to_90": [-s for s in steps90]}))
+        scores[scenario, reward, label] = {"final_success": success, "steps_to_90": [-s for s in steps90]}
+    tasks = []  # (task, [(group key, label)] of the methods with finished runs)
+    for task in tasks_of(groups).values():
+        methods = [(key, label) for key, label in task["methods"].items() if key in scores]
+        if len(methods) >= 2:
+            tasks.append((task, methods))
     improvements = []
-    for (scenario, reward), methods in tasks.items():
-        for i, (x_label, x) in enumerate(methods):
-            for y_label, y in methods[i + 1:]:
+    for task, methods in tasks:
+        for i, (x_key, x_label) in enumerate(methods):
+            for y_key, y_label in methods[i + 1:]:
                 for statistic in POI_STATISTICS:
                     # P(Y > X) = 1 - P(X > Y), on the same resamples.
-                    p, low, high = stats.probability_of_improvement_ci([x[statistic]], [y[statistic]], RESAMPLES,
-                                                                       BOOTSTRAP_SEED)
-                    improvements += [
-                        {"scenario": scenario, "reward": reward, "method": x_label, "over": y_label,
-                         "statistic": statistic, "p": (p, low, high)},
-                        {"scenario": scenario, "reward": reward, "method": y_label, "over": x_label,
-                         "statistic": statistic, "p": (1 - p, 1 - high, 1 - low)}]
+                    p, low, high = stats.probability_of_improvement_ci(
+                        [scores[x_key][statistic]], [scores[y_key][statistic]], RESAMPLES, BOOTSTRAP_SEED)
+                    common = {"task": task["name"], "scenario": task["scenario"], "reward": task["reward"],
+                              "budget": task["budget"], "statistic": statistic}
+                    improvements += [dict(common, method=x_label, over=y_label, p=(p, low, high)),
+                                     dict(common, method=y_label, over=x_label, p=(1 - p, 1 - high, 1 - low))]
     with open(os.path.join(out, "stats.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["scenario", "reward", "method", "over", "runs", "budget", "statistic", "point", "low", "high"])
@@ -157,7 +192,7 @@ def write_stats(out, groups):
                 w.writerow([c["scenario"], c["reward"], c["method"], "", c["runs"], c["budget"],
                             f"iqm_{'final_success' if name == 'success' else name}", *c[name]])
         for i in improvements:
-            w.writerow([i["scenario"], i["reward"], i["method"], i["over"], "", "",
+            w.writerow([i["scenario"], i["reward"], i["method"], i["over"], "", i["budget"],
                         f"probability_of_improvement_{i['statistic']}", *i["p"]])
     lines = [f"Interquartile means (IQM) over runs, with 95% percentile intervals of {RESAMPLES:,} stratified "
              f"bootstrap resamples (seed {BOOTSTRAP_SEED}); imca_tools.stats.", "",
@@ -173,16 +208,14 @@ def write_stats(out, groups):
     lines += ["", "Env steps to 90%: a run that never got there counts as its budget, so where such runs "
               "fall in the middle half the IQM is a lower bound. "
               f"*: fewer than {HEADLINE_RUNS} runs, too few for a headline claim."]
-    for (scenario, reward), methods in tasks.items():
-        if len(methods) < 2:
-            continue
-        labels = [label for label, _ in methods]
+    for task, methods in tasks:
+        labels = [label for _, label in methods]
         for statistic, what in POI_STATISTICS.items():
-            lines += ["", f"Probability of improvement on {scenario} + {reward} ({what}): "
+            lines += ["", f"Probability of improvement on {task['name']} ({what}): "
                       "P(a run of the row's method beats one of the column's), ties count half, [95% CI].", "",
                       "| | " + " | ".join(labels) + " |", "|---" * (len(labels) + 1) + "|"]
             table = {(i["method"], i["over"]): i["p"] for i in improvements
-                     if (i["scenario"], i["reward"], i["statistic"]) == (scenario, reward, statistic)}
+                     if (i["task"], i["statistic"]) == (task["name"], statistic)}
             for x_label in labels:
                 row = [fmt_interval(*table[x_label, y_label], lambda v: f"{v:.2f}") if x_label != y_label else "-"
                        for y_label in labels]
@@ -292,15 +325,19 @@ def plots(out, groups, method, cell_id):
                     shutil.copyfile(gif, os.path.join(gif_dir, name))
                     break
         shares_plot(out, scenario, reward, methods, cell_id, plt)
-        profile_plot(out, scenario, reward, methods, plt)
+    for task in tasks_of(groups).values():
+        profile_plot(out, task, groups, plt)
 
 
-def profile_plot(out, scenario, reward, methods, plt):
-    """Performance profile: per method, the fraction of its runs whose final
-    success is above each threshold."""
+def profile_plot(out, task, groups, plt):
+    """A task's performance profile (profile-FILE.png, tasks_of): per method,
+    the fraction of its runs whose final success is above each threshold."""
     thresholds = [i / 100 for i in range(101)]
+    if not any(s is not None for key in task["methods"] for _, s in groups[key]):
+        return  # Nothing finished yet for this task.
     fig, ax = plt.subplots(figsize=(6, 4))
-    for label, members in methods:
+    for key, label in task["methods"].items():
+        members = groups[key]
         success = [s["final_success_rate"] for _, s in members if s is not None]
         if success:
             ax.step(thresholds, stats.performance_profile(success, thresholds), where="post", lw=1.6,
@@ -309,10 +346,10 @@ def profile_plot(out, scenario, reward, methods, plt):
     ax.set_ylabel("fraction of runs above it")
     ax.set_ylim(-0.02, 1.02)
     ax.grid(alpha=0.3)
-    ax.set_title(f"{scenario} + {reward}: performance profile", fontsize=10)
+    ax.set_title(f"{task['name']}: performance profile", fontsize=10)
     ax.legend(fontsize=8, loc="lower left")
     fig.tight_layout()
-    fig.savefig(os.path.join(out, f"profile-{scenario}-{reward}.png"), dpi=110)
+    fig.savefig(os.path.join(out, f"profile-{task['file']}.png"), dpi=110)
     plt.close(fig)
 
 
