@@ -335,7 +335,7 @@ def profile_plot(out, task, groups, plt):
     thresholds = [i / 100 for i in range(101)]
     if not any(s is not None for key in task["methods"] for _, s in groups[key]):
         return  # Nothing finished yet for this task.
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(7.5, 4))
     for key, label in task["methods"].items():
         members = groups[key]
         success = [s["final_success_rate"] for _, s in members if s is not None]
@@ -347,7 +347,8 @@ def profile_plot(out, task, groups, plt):
     ax.set_ylim(-0.02, 1.02)
     ax.grid(alpha=0.3)
     ax.set_title(f"{task['name']}: performance profile", fontsize=10)
-    ax.legend(fontsize=8, loc="lower left")
+    # Outside the axes: lines at 0 and 1 sit where a legend inside would.
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1))
     fig.tight_layout()
     fig.savefig(os.path.join(out, f"profile-{task['file']}.png"), dpi=110)
     plt.close(fig)
