@@ -16,6 +16,7 @@ beats each other's, with its interval; and a performance profile per task
 methods use several reward kinds: the fraction of runs above each final
 success). A task is a scenario at one budget (tasks_of).
 """
+import collections
 import csv
 import math
 import os
@@ -124,13 +125,11 @@ def tasks_of(groups):
     scenario at one budget, whatever the novelty: a reward kind is part of
     the method (count imca against EDTI on pass is the comparison). Where a
     task's methods use several reward kinds, each label names its reward
-    ("count imca"; "edti" for a method named by its reward)."""
+    ("count imca"; "edti", "maddpg eiti" for a method named by its reward)."""
     tasks = {}
     for key, members in groups.items():
         tasks.setdefault((key[0], members[0][0]["steps"]), []).append(key)
-    budgets = {}
-    for scenario, budget in tasks:
-        budgets[scenario] = budgets.get(scenario, 0) + 1
+    budgets = collections.Counter(scenario for scenario, _ in tasks)
     named = {}
     for (scenario, budget), keys in tasks.items():
         rewards = sorted({reward for _, reward, _ in keys})
@@ -139,7 +138,7 @@ def tasks_of(groups):
             labels = {key: key[2] for key in keys}
         else:
             name, file = scenario, scenario
-            labels = {key: key[2] if key[2].split(" ")[0] == key[1] else f"{key[1]} {key[2]}" for key in keys}
+            labels = {key: key[2] if key[1] in key[2].split(" ") else f"{key[1]} {key[2]}" for key in keys}
         if budgets[scenario] > 1:
             name, file = f"{name} at {budget:,} env steps", f"{file}-{budget // 1000}k"
         named[scenario, budget] = {"name": name, "file": file, "methods": labels, "scenario": scenario,
@@ -298,15 +297,12 @@ def plots(out, groups, method, cell_id):
     scenarios = {}
     for (scenario, reward, label), members in groups.items():
         scenarios.setdefault((scenario, reward), []).append((label, members))
-    # A scenario run with several reward kinds (the edti preset: count credit
-    # modes against EITI and EDTI) also gets one plot of all its methods.
-    by_scenario = {}
-    for (scenario, reward, label), members in groups.items():
-        by_scenario.setdefault(scenario, []).append((f"{reward}: {label}", members))
-    for scenario, methods in by_scenario.items():
-        if len({reward for (s, reward, _) in groups if s == scenario}) > 1:
-            curves_figure(out, methods, cell_id, plt, f"{scenario}: mean and 95% CI over seeds",
-                          os.path.join(out, f"curves-{scenario}.png"))
+    # A task with several reward kinds (the edti preset: count credit modes
+    # against EITI and EDTI) also gets one plot of all its methods.
+    for task in tasks_of(groups).values():
+        if not task["reward"]:
+            curves_figure(out, [(label, groups[key]) for key, label in task["methods"].items()], cell_id, plt,
+                          f"{task['name']}: mean and 95% CI over seeds", os.path.join(out, f"curves-{task['file']}.png"))
     gif_dir = os.path.join(out, "gifs")
     for (scenario, reward), methods in scenarios.items():
         if not any(s is not None for _, members in methods for _, s in members):

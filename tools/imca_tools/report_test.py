@@ -41,7 +41,7 @@ class TasksTest(unittest.TestCase):
         groups = {("pass", "count", "maddpg imca"): runs(1, (1.0, 1)),
                   ("pass", "eiti", "maddpg eiti"): runs(1, (1.0, 1))}
         self.assertEqual(list(report.tasks_of(groups)["pass", 1]["methods"].values()),
-                         ["count maddpg imca", "eiti maddpg eiti"])
+                         ["count maddpg imca", "maddpg eiti"])
 
 
 class StatsTest(unittest.TestCase):
