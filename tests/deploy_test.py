@@ -467,7 +467,9 @@ class KubernetesTest(DeployTestBase, unittest.TestCase):
                 # An evicted pod exits with the signal code: replaced, but not
                 # counted towards backoffLimit.
                 rules = spec.get("podFailurePolicy", {}).get("rules", [])
-                self.assertIn({"action": "Ignore", "onPodConditions": [{"type": "DisruptionTarget"}]}, rules,
+                # status is required when kubectl applies a change as a patch (kubernetes#131512).
+                self.assertIn({"action": "Ignore",
+                               "onPodConditions": [{"type": "DisruptionTarget", "status": "True"}]}, rules,
                               doc["metadata"]["name"])
                 if rules:
                     self.assertEqual(pod["restartPolicy"], "Never", "podFailurePolicy needs restartPolicy Never")

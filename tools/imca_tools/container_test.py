@@ -3,7 +3,7 @@ server's Kubernetes Deployment run for real, under podman.
 
   ./imca deploy-test                  prebuilt image (the host's build/bin), compose, kube play
   ./imca deploy-test --from-source    the image from deploy/Dockerfile (compiles: ~15-20 min on 2 cores)
-  ./imca deploy-test compose|kube|image   one part only (image: build and scan it)
+  ./imca deploy-test compose|kube|image|experiment   one part only (image: build and scan it)
 
 What it does: installs the deploy packages (deploy/packages.txt), points
 podman at deploy/containers.conf (runc, ulimits this machine allows), makes a
@@ -18,7 +18,9 @@ reward server (each restarted by compose and resumed, the reward server
 with every answered count), the budget reached, the exit codes at
 `docker-compose down` (docs/deploy.md), no keys or results in the image, and
 (kube) the reward server's Deployment under `podman kube play`: the pod
-starts, serves mutual TLS, its probe passes. Everything it started is torn
+starts, serves mutual TLS, its probe passes; and (experiment) the pod
+command of ./imca experiment --backend k8s trains a small cell in the image.
+Everything it started is torn
 down, also on failure; images stay (the next run reuses them). Exit 1 if a
 check fails.
 """
@@ -162,6 +164,8 @@ def build_image(from_source):
         os.makedirs(os.path.join(ctx, "deploy"))
         shutil.copy2(os.path.join(DEPLOY, "packages.txt"), os.path.join(ctx, "deploy"))
         shutil.copytree(os.path.join(ROOT, "maps"), os.path.join(ctx, "maps"))
+        shutil.copytree(os.path.join(ROOT, "tools", "imca_tools"), os.path.join(ctx, "tools", "imca_tools"),
+                        ignore=shutil.ignore_patterns("__pycache__"))
         with open(os.path.join(ctx, "Dockerfile"), "w") as f:
             f.write("# ./imca deploy-test --prebuilt: the host's build/bin as stage build.\n"
                     "FROM scratch AS build\nCOPY bin/ /src/build/bin/\n\n" + runtime_stage(
@@ -666,6 +670,47 @@ def scan_context(figures):
                 ", ".join(found) or f"none ({size} MB context)", "none", not found)
 
 
+# ---------------------------------------------------------------- experiment
+
+def experiment_pod_test(figures):
+    """The pod of ./imca experiment --backend k8s, in the image: the Indexed
+    Job's container command for a small cell, with the claim and the
+    ConfigMap as folders and JOB_COMPLETION_INDEX set as the Job controller
+    sets it, trains the cell to its budget."""
+    from . import cluster, experiment
+
+    cell, = experiment.expand([{"scenario": "coop_nav", "reward": "count", "credit": "imca", "steps": 16000,
+                                "flags": {"actors": 1, "envs_per_actor": 8, "batch_steps": 1024}}], "pod")
+    record = {"number": 1, "backend": "k8s", "cells": [cell]}
+    res = dict(cluster.DEFAULT_RESOURCES, cpus_per_task=1, mem="2G")
+    config_map, job = cluster.k8s_manifest(record, "/results/pod", res, 0, IMAGE, "imca-results", "/results/pod")
+    (container,) = job["spec"]["template"]["spec"]["containers"]
+    mounts = {m["name"]: m["mountPath"] for m in container["volumeMounts"]}
+    with tempfile.TemporaryDirectory(prefix="imca-pod-") as tmp:
+        claim, queue = os.path.join(tmp, "claim"), os.path.join(tmp, "queue")
+        os.makedirs(claim)
+        os.makedirs(queue)
+        for name, text in config_map["data"].items():
+            with open(os.path.join(queue, name), "w") as f:
+                f.write(text)
+        started = time.time()
+        r = podman("run", "--rm", "-e", "JOB_COMPLETION_INDEX=0", "-v", f"{claim}:{mounts['results']}",
+                   "-v", f"{queue}:{mounts['queue']}:ro", IMAGE, *container["command"], check=False, timeout=600)
+        run_dir = os.path.join(claim, "pod", "cells", experiment.cell_id(cell))
+        summary = experiment.finished(run_dir, cell)
+        # The run folder as a local run leaves it, its pictures included.
+        missing = [f for f in ("learning_curve.png", "episode.gif") if not os.path.exists(os.path.join(run_dir, f))]
+        log = open(os.path.join(run_dir, "train.log")).read() if os.path.exists(run_dir) else ""
+        if summary and (missing or "Traceback" in log):
+            summary = None
+            r.stderr += f"\nmissing {missing}, train.log: {log[-500:]}"
+        figures.add("experiment pod (--backend k8s) in the image: its cell trains to the budget",
+                    f"exit {r.returncode}, {summary['env_steps'] if summary else 'no summary'} env steps "
+                    f"in {time.time() - started:.0f} s" if summary else
+                    f"exit {r.returncode}: {(r.stdout + r.stderr).strip().splitlines()[-1:]}",
+                    f">= {cell['steps']}", r.returncode == 0 and summary is not None)
+
+
 # ---------------------------------------------------------------------- kube
 
 def smoke_manifest(path, state_claim):
@@ -767,7 +812,7 @@ def interrupted(signum, frame):
 
 def main(argv=None):
     p = argparse.ArgumentParser(prog="./imca deploy-test", description=__doc__.split("\n\n")[0])
-    p.add_argument("part", nargs="?", default="all", choices=("all", "image", "compose", "kube"))
+    p.add_argument("part", nargs="?", default="all", choices=("all", "image", "compose", "kube", "experiment"))
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--prebuilt", dest="from_source", action="store_false",
                       help="(default) the image's runtime stage over the host's build/bin: no compile")
@@ -808,6 +853,8 @@ def main(argv=None):
                     timings["compose run"] = f"{time.time() - t:.0f} s"
         if args.part in ("all", "kube"):
             kube_test(figures)
+        if args.part in ("all", "experiment"):
+            experiment_pod_test(figures)
     except Exception as e:  # A step that could not run is a failed check too.
         figures.add("the test ran to its end", f"{type(e).__name__}: {e}", "no error", False)
     print("\n" + "\n".join(f"{k}: {v}" for k, v in timings.items()))

@@ -3,6 +3,9 @@
   ./imca experiment --preset paper|edti|quick [--out DIR] [--jobs N]
   ./imca experiment --grid FILE.json [--out DIR] [--jobs N]
   ./imca experiment --report DIR        (tables and plots of what DIR holds)
+  ./imca experiment --status DIR        (each cell: done, running, pending, failed, not run)
+  ./imca experiment --preset|--grid ... --backend slurm [--wait]   (one Slurm job array)
+  ./imca experiment --preset|--grid ... --backend k8s [--apply]    (a Kubernetes Indexed Job)
 
 Every cell (scenario x reward x credit x permutation x seed x budget) is one
 `./imca train` run through the real services, in DIR/cells/<cell>/. A cell
@@ -12,12 +15,16 @@ command again after Ctrl-C or a crash resumes; an unfinished cell starts over
 DIR/runs.csv, DIR/curves-<scenario>-<reward>.png, DIR/shares-<scenario>-<reward>.png,
 DIR/gifs/<scenario>-<reward>-<method>.gif. See docs/experiments.md.
 
+On a cluster (--backend slurm|k8s, imca_tools.cluster) each task runs one
+cell the same way, and submitting again resumes as a local rerun does.
+
 Each cell runs `python3 -m imca_tools.train` (./imca train) in a child
 process; its flags are checked beforehand as ./imca train checks them
 (imca_tools.plan), without starting anything.
 """
 import argparse
 import contextlib
+import fcntl
 import functools
 import hashlib
 import io
@@ -303,6 +310,32 @@ def default_jobs():
     return max(1, (os.cpu_count() or 2) // 2)
 
 
+def lock_cell(out, cell):
+    """An open lock file that holds `cell` of OUT for this process (flock:
+    released when the file is closed or the process ends, however), or None
+    if another process (a local grid, a cluster task) holds it."""
+    os.makedirs(os.path.join(out, "cells"), exist_ok=True)
+    lock = open(os.path.join(out, "cells", f".{cell_id(cell)}.lock"), "w")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        lock.close()
+        return None
+    return lock
+
+
+def start_cell(cell, run_dir):
+    """Starts a cell's ./imca train run in `run_dir` (emptied first: an
+    unfinished cell starts over), its output in run_dir/train.log; the
+    child's Popen. Local grids and cluster tasks (cluster.run_cell) both."""
+    if os.path.exists(run_dir):
+        shutil.rmtree(run_dir)
+    os.makedirs(run_dir)
+    with open(os.path.join(run_dir, "train.log"), "w") as log:
+        return subprocess.Popen(train_argv(cell, run_dir), stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True, env=binaries.module_env())
+
+
 def run_cells(cells, out, jobs):
     """Runs the unfinished cells, `jobs` at a time. Returns False if interrupted."""
     todo = []
@@ -319,7 +352,7 @@ def run_cells(cells, out, jobs):
     done_before = len(cells) - len(todo)
     print(f"imca experiment: {len(cells)} cells, {done_before} already finished, {len(todo)} to run, "
           f"{jobs} at a time; results in {out}", file=sys.stderr, flush=True)
-    running = []  # (cell, run_dir, Popen, start time)
+    running = []  # (cell, run_dir, Popen, start time, lock file)
     stop = []
     old_int = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     old_term = signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
@@ -330,19 +363,18 @@ def run_cells(cells, out, jobs):
         while (todo or running) and not stop:
             while todo and len(running) < jobs and not stop:
                 cell, run_dir = todo.pop(0)
-                if os.path.exists(run_dir):
-                    shutil.rmtree(run_dir)  # An unfinished cell starts over.
-                os.makedirs(run_dir)
-                with open(os.path.join(run_dir, "train.log"), "w") as log:
-                    proc = subprocess.Popen(train_argv(cell, run_dir), stdout=log, stderr=subprocess.STDOUT,
-                                            start_new_session=True, env=binaries.module_env())
-                running.append((cell, run_dir, proc, time.time()))
+                lock = lock_cell(out, cell)
+                if lock is None:
+                    failures.append((cell_id(cell), "it is running in another process (a cluster task?)"))
+                    continue
+                running.append((cell, run_dir, start_cell(cell, run_dir), time.time(), lock))
             time.sleep(0.5)
             for entry in list(running):
-                cell, run_dir, proc, t0 = entry
+                cell, run_dir, proc, t0, lock = entry
                 if proc.poll() is None:
                     continue
                 running.remove(entry)
+                lock.close()
                 completed += 1
                 summary = finished(run_dir, cell)
                 if summary is None:
@@ -356,10 +388,10 @@ def run_cells(cells, out, jobs):
                 print(f"[{done_before + completed}/{len(cells)}] {cell_id(cell)}: {status} "
                       f"({time.time() - t0:.0f} s); ETA {runs.fmt_duration(eta)}", file=sys.stderr, flush=True)
     finally:
-        for _, _, proc, _ in running:
+        for _, _, proc, _, _ in running:
             if proc.poll() is None:
                 proc.send_signal(signal.SIGTERM)  # ./imca train stops its services in order.
-        for _, run_dir, proc, _ in running:
+        for _, run_dir, proc, _, _ in running:
             try:
                 # ./imca train stops actors, learner and reward server with
                 # bounded waits (at most 270 s in all).
@@ -392,23 +424,75 @@ def main(argv=None):
     what.add_argument("--preset", help="a built-in grid (docs/experiments.md; a wrong name lists them)")
     what.add_argument("--grid", metavar="FILE", help="a JSON grid (docs/experiments.md)")
     what.add_argument("--report", metavar="DIR", help="only (re)write the tables and plots of DIR")
+    what.add_argument("--status", metavar="DIR", help="the state of each cell of DIR: done, running, pending, "
+                                                        "failed (with its last log line), not run")
+    what.add_argument("--run-cell", metavar="FILE", help="(a cluster task) run one cell of the submission FILE "
+                                                          "into --out: cell --index, else $SLURM_ARRAY_TASK_ID or "
+                                                          "$JOB_COMPLETION_INDEX")
     p.add_argument("--out", default="",
                    help=f"results folder (default: results/<preset>-{PRESET_EDITION} or results/<grid name>)")
     p.add_argument("--jobs", type=options.positive_int, default=0,
-                   help=f"runs at once (default: cores/2 = {default_jobs()})")
+                   help=f"runs at once (default: cores/2 = {default_jobs()}; on a cluster: no limit but the "
+                        "cluster's)")
+    p.add_argument("--only", default="", metavar="CELL[,CELL]",
+                   help="run (submit) only these cells of the grid (--status names them)")
+    p.add_argument("--index", type=int, default=None, help=argparse.SUPPRESS)
+    cluster_flags = p.add_argument_group("on a cluster (docs/experiments.md, 'On a cluster')")
+    cluster_flags.add_argument("--backend", choices=("local", "slurm", "k8s"), default="local",
+                               help="local: child processes here (default); slurm: one job array (sbatch) of "
+                                    "the unfinished cells; k8s: an Indexed Job manifest of them")
+    cluster_flags.add_argument("--cpus-per-task", type=options.positive_int, default=None,
+                               help="cores per cell (default: the grid's resources, else 2)")
+    cluster_flags.add_argument("--mem", default="", help="memory per cell, e.g. 4G (default: the grid's, else 4G)")
+    cluster_flags.add_argument("--time", default="", help="Slurm time limit per cell, e.g. 2:00:00 (default: "
+                                                          "the partition's)")
+    cluster_flags.add_argument("--partition", default="", help="Slurm partition (default: the cluster's)")
+    cluster_flags.add_argument("--sbatch-arg", action="append", default=[], metavar="ARG",
+                               help="passed to sbatch as is, e.g. --sbatch-arg=--qos=long (repeatable)")
+    cluster_flags.add_argument("--wait", action="store_true",
+                               help="slurm: wait for the array to end, then write the tables")
+    cluster_flags.add_argument("--poll-seconds", type=float, default=10.0, help=argparse.SUPPRESS)
+    cluster_flags.add_argument("--image", default="", help="k8s: the image (deploy/Dockerfile; default imca:latest)")
+    cluster_flags.add_argument("--claim", default="",
+                               help="k8s: the ReadWriteMany PersistentVolumeClaim that holds the results "
+                                    "(default imca-results)")
+    cluster_flags.add_argument("--k8s-out", default="", help="k8s: the results folder in the pods "
+                                                             "(default: /results/<basename of --out>)")
+    cluster_flags.add_argument("--apply", action="store_true", help="k8s: kubectl apply the manifest")
     args = p.parse_args(options.dashed(argv))
     try:
         if args.preset and args.preset not in presets():
             p.error(f"argument --preset: '{args.preset}' is not one of {', '.join(sorted(presets()))}")
     except binaries.LaunchError as error:
         p.error(str(error))
+    running = bool(args.preset or args.grid)
+    for flag, backends in (("cpus_per_task", ("slurm", "k8s")), ("mem", ("slurm", "k8s")), ("time", ("slurm",)),
+                           ("partition", ("slurm",)), ("sbatch_arg", ("slurm",)), ("wait", ("slurm",)),
+                           ("apply", ("k8s",)), ("k8s_out", ("k8s",)), ("image", ("k8s",)), ("claim", ("k8s",))):
+        if getattr(args, flag) and not (running and args.backend in backends):
+            p.error(f"argument --{flag.replace('_', '-')}: only with --preset or --grid and --backend "
+                    + " or ".join(backends))
+    if args.backend != "local" and not running:
+        p.error("argument --backend: only with --preset or --grid")
+    if args.index is not None and not args.run_cell:
+        p.error("argument --index: only with --run-cell")
+    if args.only and not running:
+        p.error("argument --only: only with --preset or --grid")
+    if args.poll_seconds <= 0:
+        p.error("argument --poll-seconds: must be > 0")
+    args.image = args.image or "imca:latest"
+    args.claim = args.claim or "imca-results"
 
-    from . import report  # matplotlib only once the flags are valid
+    from . import cluster  # The backends (cluster imports this module).
 
     try:
-        if args.report:
-            out = os.path.abspath(args.report)
-            grid = load_saved_grid(out)
+        if args.run_cell:
+            if not args.out:
+                p.error("argument --run-cell: needs --out (the results folder)")
+            return cluster.run_cell(args.run_cell, args.index, os.path.abspath(args.out))
+        if args.report or args.status:
+            out = os.path.abspath(args.report or args.status)
+            grid = load_saved_grid(out, "--report" if args.report else "--status")
         else:
             if args.preset:
                 grid = {"name": args.preset, "description": presets()[args.preset]["description"],
@@ -418,15 +502,28 @@ def main(argv=None):
             default_out = f"{args.preset}-{PRESET_EDITION}" if args.preset else grid["name"]
             out = os.path.abspath(args.out or os.path.join(ROOT, "results", default_out))
         cells = expand(grid["entries"], args.grid or args.preset or "grid.json")
+        if args.status:
+            return cluster.print_status(out, cells)
         check_flags(cells)
+        if args.backend != "local":
+            cluster.check(args, grid)  # Before anything is written.
         os.makedirs(out, exist_ok=True)
         failed = 0
         complete = True
         if not args.report:
             save_grid(out, grid)
-            complete, failed = run_cells(cells, out, args.jobs or default_jobs())
-        report.write(out, cells, {cell_id(c): finished(os.path.join(out, "cells", cell_id(c)), c) for c in cells},
-                     labeller(cells), cell_id)
+            if args.backend != "local":
+                code = cluster.submit(args, grid, cells, out)
+                if not args.wait:
+                    return code
+            else:
+                complete, failed = run_cells(only(cells, args.only), out, args.jobs or default_jobs())
+        from . import report  # matplotlib only once something is to be drawn
+
+        results = {cell_id(c): finished(os.path.join(out, "cells", cell_id(c)), c) for c in cells}
+        report.write(out, cells, results, labeller(cells), cell_id)
+        if args.wait:
+            failed = sum(1 for c in only(cells, args.only) if results[cell_id(c)] is None)
     except ExperimentError as error:
         print(f"imca experiment: {error}", file=sys.stderr)
         return 2
@@ -435,10 +532,22 @@ def main(argv=None):
         return 130
     print(f"imca experiment: table {os.path.join(out, 'table.md')}", file=sys.stderr)
     if failed:
-        print(f"imca experiment: {failed} cells failed (their train.log says why); the same command "
-              f"retries them", file=sys.stderr)
+        print(f"imca experiment: {failed} cells failed (their train.log says why; --status lists them); the same "
+              f"command retries them", file=sys.stderr)
         return 1
     return 0
+
+
+def only(cells, names):
+    """The cells --only names (all without it); a name that is no cell is a one-line error."""
+    if not names:
+        return cells
+    wanted = names.split(",")
+    ids = {cell_id(c) for c in cells}
+    for name in wanted:
+        if name not in ids:
+            raise ExperimentError(f"--only: '{name}' is not a cell of this grid (--status lists them)")
+    return [c for c in cells if cell_id(c) in wanted]
 
 
 def load_grid(path):
@@ -473,12 +582,15 @@ def save_grid(out, grid):
     os.replace(path + ".tmp", path)
 
 
-def load_saved_grid(out):
+def load_saved_grid(out, flag="--report"):
     path = os.path.join(out, "grid.json")
     if not os.path.isfile(path):
-        raise ExperimentError(f"--report: '{out}' holds no experiment (grid.json)")
+        raise ExperimentError(f"{flag}: '{out}' holds no experiment (grid.json)")
     return load_grid(path)
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    # The package's module, not __main__: imca_tools.cluster raises this
+    # module's ExperimentError, which main catches.
+    from imca_tools import experiment
+    sys.exit(experiment.main(sys.argv[1:]))
