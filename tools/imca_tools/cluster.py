@@ -376,10 +376,24 @@ def k8s_manifest(record, out, res, jobs, image, claim, results_dir):
     return [config_map, job]
 
 
-def write_k8s(out, grid_name, todo, res, jobs, image, claim, results_dir):
-    """Writes DIR/k8s/<n>.yaml for `todo`; returns (record, path)."""
+def manifest_text(docs):
+    """The manifest's YAML: multi-line strings as blocks (the cells, one a
+    line), repeated values in full (no anchors)."""
     import yaml  # python3-yaml, a host package
 
+    class Dumper(yaml.SafeDumper):
+        def ignore_aliases(self, data):
+            return True
+
+    def text(dumper, value):
+        return dumper.represent_scalar("tag:yaml.org,2002:str", value, style="|" if "\n" in value else None)
+
+    Dumper.add_representer(str, text)
+    return yaml.dump_all(docs, Dumper=Dumper, sort_keys=False)
+
+
+def write_k8s(out, grid_name, todo, res, jobs, image, claim, results_dir):
+    """Writes DIR/k8s/<n>.yaml for `todo`; returns (record, path)."""
     record = new_submission(out, "k8s", todo)
     docs = k8s_manifest(record, out, res, jobs, image, claim, results_dir)
     record["job"] = docs[1]["metadata"]["name"]
@@ -389,7 +403,7 @@ def write_k8s(out, grid_name, todo, res, jobs, image, claim, results_dir):
     with open(path, "w") as f:
         f.write(f"# imca experiment submission {record['number']}: {len(todo)} cells of grid {grid_name}\n"
                 f"# kubectl apply -f {os.path.basename(path)}  (needs the claim {claim}: docs/experiments.md)\n")
-        yaml.safe_dump_all(docs, f, sort_keys=False)
+        f.write(manifest_text(docs))
     return record, path
 
 
