@@ -427,7 +427,11 @@ def submit(args, grid, cells, out):
         print(f"imca experiment: submitted Slurm array job {record['job']} ({len(todo)} tasks; logs in "
               f"{os.path.join(out, 'logs')}); see ./imca experiment --status {out}", file=sys.stderr, flush=True)
         if args.wait:
-            wait_slurm(out, record, args.poll_seconds)
+            try:
+                wait_slurm(out, record, args.poll_seconds)
+            except KeyboardInterrupt:
+                raise ExperimentError(f"stopped waiting; job {record['job']} goes on (--status {out}; "
+                                      f"scancel {record['job']} stops it)") from None
         return 0
     results_dir = args.k8s_out or f"{K8S_RESULTS}/{os.path.basename(out)}"
     earlier = [r for r in records if r["backend"] == "k8s" and any(cell_id(c) in {cell_id(t) for t in todo}
