@@ -176,6 +176,158 @@ class SecretRoom final : public DoorScenario {
   absl::string_view name() const override { return "secret_room"; }
 };
 
+// The task versions of the methods published after EDTI (BASELINES.md 4.3
+// and 6.2), as CMAE's env/rooms.py and env/secret_rooms.py and MACE's
+// room.py and secret_rooms.py run them: 4 actions, agents that may share a
+// cell and start on fixed cells, every door closed at the start. Each step
+// the agents move through the doors of the previous step; then every door is
+// recomputed from the new positions: a switch is active if an agent is
+// within a Euclidean distance of it (no timer), and a door is open if one of
+// its switches is active ('*' opens every door). With first_switch_only
+// (CMAE's secret_room) only the first active switch acts, in the order '*',
+// then the switches of door A, B, ... Success: every agent inside the goal
+// rectangle. z bit d: door d open.
+struct SwitchRoomRules {
+  double radius;
+  bool first_switch_only;
+  // The goal rectangle in map coordinates (the border included), inclusive.
+  int min_row, max_row, min_col, max_col;
+  float success_reward;
+};
+
+class SwitchRooms final : public Scenario {
+ public:
+  SwitchRooms(std::string name, const SwitchRoomRules& rules, GridMap map, const ScenarioConfig& config, int n)
+      : Scenario(std::move(map), config, n, 0, 4, 300, rules.success_reward, 0.0f, /*agents_share_cells=*/true),
+        name_(std::move(name)),
+        rules_(rules) {
+    // Switches in the order CMAE's secret_room tries them: '*', then by door.
+    for (int cell = 0; cell < map_.num_cells(); ++cell) {
+      if (map_.SwitchAt(cell) == GridMap::kEveryDoor) switch_order_.push_back(cell);
+    }
+    for (int d = 0; d < map_.num_doors(); ++d) {
+      for (int cell = 0; cell < map_.num_cells(); ++cell) {
+        if (map_.SwitchAt(cell) == d) switch_order_.push_back(cell);
+      }
+    }
+  }
+
+  absl::string_view name() const override { return name_; }
+  int num_object_bits() const override { return map_.num_doors(); }
+  bool DoorOpen(const int32_t* state, int door) const override {
+    return (static_cast<uint32_t>(state[kObjectsIndex]) >> door) & 1u;
+  }
+
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    const int t = StepAgents(state, actions, rng);
+    const uint32_t every = (1u << map_.num_doors()) - 1;
+    uint32_t z = 0;
+    for (int32_t sw : switch_order_) {
+      if (!Active(state, sw)) continue;
+      const int opens = map_.SwitchAt(sw);
+      z |= opens == GridMap::kEveryDoor ? every : 1u << opens;
+      if (rules_.first_switch_only) break;
+    }
+    state[kObjectsIndex] = static_cast<int32_t>(z);
+    bool all_in = true;
+    for (int a = 0; a < num_agents_; ++a) {
+      const int row = map_.Row(state[AgentIndex(a)]), col = map_.Col(state[AgentIndex(a)]);
+      all_in &= row >= rules_.min_row && row <= rules_.max_row && col >= rules_.min_col && col <= rules_.max_col;
+    }
+    return Finish(t, all_in, rewards);
+  }
+
+ private:
+  bool Active(const int32_t* state, int32_t sw) const {
+    for (int a = 0; a < num_agents_; ++a) {
+      const int dr = map_.Row(state[AgentIndex(a)]) - map_.Row(sw);
+      const int dc = map_.Col(state[AgentIndex(a)]) - map_.Col(sw);
+      // sqrt(d2) <= r as the Python code compares, on integer d2.
+      if (std::sqrt(static_cast<double>(dr * dr + dc * dc)) <= rules_.radius) return true;
+    }
+    return false;
+  }
+
+  const std::string name_;
+  const SwitchRoomRules rules_;
+  std::vector<int32_t> switch_order_;
+};
+
+// CMAE's push_box (env/push_box.py, BASELINES.md 4.3): a 3x3 box (entity 0,
+// its centre cell; its nine cells block the agents) that moves one cell in a
+// direction when at least two agents, each beside the box on the opposite
+// side and level with it, push that way in the same step, unless a wall lies
+// beyond. The box moves first, then the agents (on the box's new cells).
+// Success: a side of the box lies against a wall (the grid's edge in CMAE's
+// border-free grid). 4 actions, agents may share a cell.
+class PushBox final : public Scenario {
+ public:
+  PushBox(GridMap map, const ScenarioConfig& config, int n)
+      : Scenario(std::move(map), config, n, 1, 4, 300, 1.0f, 0.0f, /*agents_share_cells=*/true) {}
+
+  absl::string_view name() const override { return "push_box_cmae"; }
+  int num_object_bits() const override { return 0; }
+  bool Covers(const int32_t* state, int entity, int cell) const override {
+    const int box = state[1 + num_agents_ + entity];
+    return std::abs(map_.Row(cell) - map_.Row(box)) <= 1 && std::abs(map_.Col(cell) - map_.Col(box)) <= 1;
+  }
+  char EntityChar() const override { return 'O'; }
+
+  void Reset(Rng& rng, int32_t* state) const override {
+    Scenario::Reset(rng, state);
+    state[1 + num_agents_] = map_.box_centres()[0];
+  }
+
+  StepOutcome Step(int32_t* state, const int32_t* actions, Rng& rng, float* rewards) const override {
+    int32_t& box = state[1 + num_agents_];
+    const int top = map_.Row(box) - 1, bot = map_.Row(box) + 1, left = map_.Col(box) - 1, right = map_.Col(box) + 1;
+    int force[4] = {0, 0, 0, 0};  // By our action code: up, down, left, right.
+    for (int a = 0; a < num_agents_; ++a) {
+      const int row = map_.Row(state[AgentIndex(a)]), col = map_.Col(state[AgentIndex(a)]);
+      if (row >= top && row <= bot) {
+        if (col == right + 1 && actions[a] == kLeft) ++force[kLeft];
+        else if (col == left - 1 && actions[a] == kRight) ++force[kRight];
+      }
+      if (col >= left && col <= right) {
+        if (row == top - 1 && actions[a] == kDown) ++force[kDown];
+        else if (row == bot + 1 && actions[a] == kUp) ++force[kUp];
+      }
+    }
+    for (int u = 0; u < 4; ++u) {
+      if (force[u] < 2) continue;
+      if (!Blocked(box, u)) box += kDRow[u] * map_.width() + kDCol[u];
+      break;
+    }
+    // Agents move onto floor that is not the box: MoveAgents' `others` holds
+    // single cells, so the box is checked here.
+    for (int a = 0; a < num_agents_; ++a) {
+      int32_t& cell = state[AgentIndex(a)];
+      const int row = map_.Row(cell) + kDRow[actions[a]], col = map_.Col(cell) + kDCol[actions[a]];
+      if (row < 0 || row >= map_.height() || col < 0 || col >= map_.width()) continue;
+      const int target = row * map_.width() + col;
+      if (!map_.IsWall(target) && !Covers(state, 0, target)) cell = target;
+    }
+    const int t = ++state[step_index()];
+    bool against = false;
+    for (int u = 0; u < 4; ++u) against |= Blocked(box, u);
+    return Finish(t, against, rewards);
+  }
+
+ private:
+  // True if a wall (or the grid's edge) lies beyond the box's side in direction u.
+  bool Blocked(int box, int u) const {
+    for (int k = -1; k <= 1; ++k) {
+      const int row = map_.Row(box) + 2 * kDRow[u] + (kDRow[u] == 0 ? k : 0);
+      const int col = map_.Col(box) + 2 * kDCol[u] + (kDCol[u] == 0 ? k : 0);
+      if (row < 0 || row >= map_.height() || col < 0 || col >= map_.width() ||
+          map_.IsWall(row * map_.width() + col)) {
+        return true;
+      }
+    }
+    return false;
+  }
+};
+
 // twin_buttons (paper fig. 1b): success when every button is pressed on the
 // same step. z bit k: button k pressed after the last step.
 class TwinButtons final : public Scenario {
@@ -296,6 +448,14 @@ std::string NeedDoors(const GridMap& map) {
   return "";
 }
 
+// A switch-room variant: its rules are the released code's (BASELINES.md 4.3,
+// 6.2), its layout the map's (maps/<name>.txt).
+ScenarioSpec SwitchRoomSpec(const std::string& name, SwitchRoomRules rules, int agents) {
+  return {agents, NeedDoors, [name, rules](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+            return std::make_unique<SwitchRooms>(name, rules, std::move(m), c, n);
+          }};
+}
+
 const std::map<std::string, ScenarioSpec>& Specs() {
   static const auto* specs = new std::map<std::string, ScenarioSpec>{
       {"coop_nav",
@@ -345,6 +505,30 @@ const std::map<std::string, ScenarioSpec>& Specs() {
         },
         [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
           return std::make_unique<SecretRoom>(std::move(m), c, n);
+        }}},
+      {"pass_cmae", SwitchRoomSpec("pass_cmae", {4.5, false, 1, 30, 17, 30, 1.0f}, 2)},
+      {"secret_room_cmae", SwitchRoomSpec("secret_room_cmae", {1.5, true, 1, 10, 15, 25, 1.0f}, 2)},
+      {"pass_mace", SwitchRoomSpec("pass_mace", {1.0, false, 1, 30, 17, 30, 100.0f}, 2)},
+      {"secret_room_mace", SwitchRoomSpec("secret_room_mace", {1.0, false, 1, 10, 17, 30, 100.0f}, 2)},
+      {"multi_room3_mace", SwitchRoomSpec("multi_room3_mace", {1.0, false, 12, 20, 17, 30, 100.0f}, 3)},
+      {"push_box_cmae",
+       {2,
+        [](const GridMap& m) {
+          if (m.box_centres().size() != 1) return std::string("needs exactly one box centre 'O'");
+          const int box = m.box_centres()[0];
+          for (int dr = -1; dr <= 1; ++dr) {
+            for (int dc = -1; dc <= 1; ++dc) {
+              const int row = m.Row(box) + dr, col = m.Col(box) + dc;
+              if (row < 0 || row >= m.height() || col < 0 || col >= m.width() ||
+                  m.IsWall(row * m.width() + col)) {
+                return std::string("needs the 3x3 box around 'O' on floor");
+              }
+            }
+          }
+          return std::string();
+        },
+        [](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
+          return std::make_unique<PushBox>(std::move(m), c, n);
         }}},
   };
   return *specs;
@@ -396,7 +580,8 @@ uint64_t Scenario::fingerprint() const {
     mix(static_cast<uint64_t>(map_.IsWall(cell)) | static_cast<uint64_t>(map_.InPreyZone(cell)) << 1 |
         static_cast<uint64_t>(map_.DoorAt(cell) + 1) << 2 | static_cast<uint64_t>(map_.SwitchAt(cell) + 1) << 8);
   }
-  for (const auto* cells : {&map_.treasures(), &map_.buttons(), &map_.goal_markers(), &map_.random_spawns()}) {
+  for (const auto* cells : {&map_.treasures(), &map_.buttons(), &map_.goal_markers(), &map_.random_spawns(),
+                            &map_.box_centres()}) {
     mix(cells->size());
     for (int32_t cell : *cells) mix(cell);
   }
@@ -568,7 +753,7 @@ std::string Scenario::Render(const int32_t* state) const {
         c = static_cast<char>('a' + map_.SwitchAt(cell));
       }
       if (map_.DoorAt(cell) >= 0) c = DoorOpen(state, map_.DoorAt(cell)) ? '/' : static_cast<char>('A' + map_.DoorAt(cell));
-      for (int j = 0; j < num_npcs_; ++j) c = state[1 + num_agents_ + j] == cell ? 'P' : c;
+      for (int j = 0; j < num_npcs_; ++j) c = Covers(state, j, cell) ? EntityChar() : c;
       for (int a = num_agents_ - 1; a >= 0; --a) c = state[AgentIndex(a)] == cell ? static_cast<char>('1' + a) : c;
       out.push_back(c);
     }
@@ -637,7 +822,8 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConf
   std::unique_ptr<Scenario> scenario = spec->second.make(std::move(map), config, num_agents);
   if (config.door_timer >= 0 && scenario->door_timer() < 0) {
     return absl::InvalidArgumentError(
-        absl::StrCat("door_timer is for the door scenarios (multi_room, pass, secret_room), not ", config.name));
+        absl::StrCat("door_timer is for the timed door scenarios (multi_room, pass, secret_room), not ",
+                     config.name));
   }
   if (scenario->map().shared_spawn() >= 0 && !scenario->agents_share_cells()) {
     return absl::InvalidArgumentError(absl::StrCat(

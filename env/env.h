@@ -98,6 +98,12 @@ class Scenario {
   // What a state shows, for renderers and tests.
   virtual bool DoorOpen(const int32_t* state, int door) const { return false; }
   virtual bool TreasureCollected(const int32_t* state, int treasure) const { return false; }
+  // Whether non-player entity `entity` covers `cell` (its own cell, or the
+  // 3x3 box of push_box_cmae), and the character Render draws it with.
+  virtual bool Covers(const int32_t* state, int entity, int cell) const {
+    return state[1 + num_agents_ + entity] == cell;
+  }
+  virtual char EntityChar() const { return 'P'; }
   // A button is pressed while an agent stands on it.
   bool ButtonPressed(const int32_t* state, int button) const;
 

@@ -65,6 +65,8 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
         map.treasures_.push_back(cell);
       } else if (c == 'X') {
         map.buttons_.push_back(cell);
+      } else if (c == 'O') {
+        map.box_centres_.push_back(cell);
       } else if (c == 'Z') {
         zone = 1;
         map.prey_zone_.push_back(cell);
@@ -78,7 +80,7 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
       } else {
         return absl::InvalidArgumentError(
             absl::StrCat(source, ":", line_no, ":", col + 1, ": unknown map character '", std::string(1, c),
-                         "' (legend: # . 1-9 @ S T X Z G A-F a-f *)"));
+                         "' (legend: # . 1-9 @ S T X O Z G A-F a-f *)"));
       }
       max_door = std::max<int>(max_door, std::max<int>(door, sw == kEveryDoor ? -1 : sw));
       map.wall_.push_back(wall);

@@ -15,6 +15,7 @@ namespace imca::env {
 //   '#' wall              '.' floor
 //   '1'..'9' fixed spawn of agent 1..9      'S' random agent spawn
 //   'T' treasure          'X' button        'Z' prey zone (prey spawns and moves only here)
+//   'O' the centre of a 3x3 box agents push (push_box_cmae; its 8 other cells are floor in the file)
 //   'G' goal marker: the room (door-free connected region) holding it is the goal room
 //   'A'..'F' a cell of door 0..5 (several cells with one letter form one wide door)
 //   'a'..'f' a switch of door 0..5      '*' a switch of every door (EDTI's main switch)
@@ -52,6 +53,7 @@ class GridMap {
   const std::vector<int32_t>& random_spawns() const { return random_spawns_; }
   const std::vector<int32_t>& treasures() const { return treasures_; }
   const std::vector<int32_t>& buttons() const { return buttons_; }
+  const std::vector<int32_t>& box_centres() const { return box_centres_; }
   const std::vector<int32_t>& prey_zone() const { return prey_zone_; }
   const std::vector<int32_t>& goal_markers() const { return goal_markers_; }
   bool InPreyZone(int cell) const { return zone_[cell] != 0; }
@@ -89,6 +91,7 @@ class GridMap {
   std::vector<int32_t> random_spawns_;
   std::vector<int32_t> treasures_;
   std::vector<int32_t> buttons_;
+  std::vector<int32_t> box_centres_;
   std::vector<int32_t> prey_zone_;
   std::vector<int32_t> goal_markers_;
   std::vector<std::vector<int32_t>> door_cells_;

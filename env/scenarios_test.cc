@@ -417,7 +417,7 @@ TEST(EdtiTest, DoorTimerIsValidated) {
   config.door_timer = 3;
   auto s = MakeScenario(config, DefaultMapDir());
   ASSERT_FALSE(s.ok());
-  EXPECT_THAT(s.status().message(), ::testing::HasSubstr("door_timer is for the door scenarios"));
+  EXPECT_THAT(s.status().message(), ::testing::HasSubstr("door_timer is for the timed door scenarios"));
   // '@' needs agents that may share a cell.
   auto shared = Make("pass", "#@.#a.A.G#\n");
   EXPECT_TRUE(shared->agents_share_cells());

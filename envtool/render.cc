@@ -182,7 +182,19 @@ Image Renderer::Draw(const int32_t* state) const {
   }
   for (int j = 0; j < s.num_npcs(); ++j) {
     const int32_t cell = state[1 + s.num_agents() + j];
-    canvas.Triangle(map.Row(cell), map.Col(cell), kNpc);
+    // An entity of one cell (the prey) is a triangle; a larger one (push_box_cmae's box) fills its cells.
+    bool larger = false;
+    for (int other = 0; other < map.num_cells(); ++other) {
+      if (other != cell && s.Covers(state, j, other)) {
+        canvas.Square(map.Row(other), map.Col(other), 0.46, kNpc);
+        larger = true;
+      }
+    }
+    if (larger) {
+      canvas.Square(map.Row(cell), map.Col(cell), 0.46, kNpc);
+    } else {
+      canvas.Triangle(map.Row(cell), map.Col(cell), kNpc);
+    }
   }
   return image;
 }
