@@ -18,9 +18,15 @@
 
 namespace imca::actor {
 
-ActorConfig DefaultActorConfig(absl::string_view scenario) {
+std::vector<std::string> ActorAlgoNames() { return {"mappo", "maddpg", "cmae"}; }
+
+ActorConfig DefaultActorConfig(absl::string_view scenario, absl::string_view algo) {
   ActorConfig config;
   config.unroll_length = env::TuningOf(scenario).unroll_length.value_or(config.unroll_length);
+  if (algo == "cmae") {
+    config.num_envs = 1;
+    config.unroll_length = kCmaeEpisodeSteps;
+  }
   return config;
 }
 
@@ -153,16 +159,20 @@ absl::Status Actor::Admit(const v1::Policy& policy) {
   return absl::OkStatus();
 }
 
-void Actor::SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
-                          float* probs) {
+void Actor::SampleActions(const int32_t* states, int num_envs, bool evaluation, int32_t* actions,
+                          float* log_probs, float* probs) {
   const int n = scenario_->num_agents(), k = scenario_->state_size(), a_count = scenario_->num_actions();
-  const int obs_dim = featurizer_.obs_dim();
-  for (int e = 0; e < num_envs; ++e) {
-    for (int a = 0; a < n; ++a) {
-      featurizer_.Observe(states + e * k, a, &obs_[static_cast<size_t>(e * n + a) * obs_dim]);
+  if (const PolicyTable* table = policies_.table(); table != nullptr) {
+    table->Probabilities(states, num_envs, evaluation, probs);
+  } else {
+    const int obs_dim = featurizer_.obs_dim();
+    for (int e = 0; e < num_envs; ++e) {
+      for (int a = 0; a < n; ++a) {
+        featurizer_.Observe(states + e * k, a, &obs_[static_cast<size_t>(e * n + a) * obs_dim]);
+      }
     }
+    policies_.mlp()->Probabilities(obs_.data(), num_envs * n, probs);
   }
-  policies_.policy()->Probabilities(obs_.data(), num_envs * n, probs);
   for (int row = 0; row < num_envs * n; ++row) {
     const float* p = probs + row * a_count;
     const int u = SampleCategorical(p, a_count, rng_.UniformDouble());
@@ -192,7 +202,7 @@ void Actor::Rollout(v1::Unroll* u) {
   for (int t = 0; t < T; ++t) {
     u->mutable_states()->Add(envs_.states(), envs_.states() + E * k);
     for (int e = 0; e < E; ++e) u->add_episode_ids(envs_.episode_id(e));
-    SampleActions(envs_.states(), E, actions_.data(), log_probs_.data(), probs_.data());
+    SampleActions(envs_.states(), E, /*evaluation=*/false, actions_.data(), log_probs_.data(), probs_.data());
     u->mutable_actions()->Add(actions_.begin(), actions_.begin() + E * n);
     u->mutable_behaviour_log_probs()->Add(log_probs_.begin(), log_probs_.begin() + E * n);
     u->mutable_action_probs()->Add(probs_.begin(), probs_.begin() + E * n * a_count);
@@ -205,7 +215,7 @@ void Actor::Rollout(v1::Unroll* u) {
     }
     if (config_.eval_envs > 0) {
       const int V = config_.eval_envs;
-      SampleActions(eval_envs_.states(), V, actions_.data(), log_probs_.data(), probs_.data());
+      SampleActions(eval_envs_.states(), V, /*evaluation=*/true, actions_.data(), log_probs_.data(), probs_.data());
       eval_envs_.Step(actions_.data(), rewards_.data(), terminated_.get(), truncated_.get(), reached_.data());
     }
   }
@@ -327,7 +337,7 @@ absl::Status Actor::Run() {
       case Phase::kActing:
         // No policy: the first, or the learner went back and had none to give.
         // Waiting for one counts as choosing a policy.
-        if (policies_.policy() == nullptr) {
+        if (!policies_.held()) {
           const bool got = policies_.Refresh(/*wait=*/true);
           counters_.phase_seconds[static_cast<int>(Phase::kChoosingPolicy)]->Increment(Lap(lap));
           if (!got) {

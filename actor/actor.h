@@ -74,9 +74,15 @@ struct ActorConfig {
   bool tls = false;
 };
 
-// The defaults of an actor of `scenario`: ActorConfig's, joined with the
-// scenario's tuning (env::TuningOf). The actor binary's flags override them.
-ActorConfig DefaultActorConfig(absl::string_view scenario);
+// The learner algorithms (--algo) whose policies an actor acts with: the
+// learner's names (learner_config.h; tests/defaults_test.py checks they agree).
+std::vector<std::string> ActorAlgoNames();
+
+// The defaults of an actor of `scenario` collecting for a learner of `algo`:
+// ActorConfig's, joined with the scenario's tuning (env::TuningOf); for
+// cmae one environment and unrolls of CMAE's episode (kCmaeEpisodeSteps,
+// protocol/policy_table.h). The actor binary's flags override them.
+ActorConfig DefaultActorConfig(absl::string_view scenario, absl::string_view algo = "mappo");
 
 // Steps vectorised environments with a local copy of the newest policy, gets
 // each unroll's per-agent intrinsic rewards from the reward server (one Score
@@ -148,7 +154,9 @@ class Actor {
   // sync_unrolls -1, its synchronous share must be whole unrolls.
   absl::Status Admit(const v1::Policy& policy);
   void Rollout(v1::Unroll* unroll);
-  void SampleActions(const int32_t* states, int num_envs, int32_t* actions, float* log_probs,
+  // Actions of the policy held for states [num_envs][K]; `evaluation`: for
+  // the evaluation envs (a tabular policy acts on its exploitation table).
+  void SampleActions(const int32_t* states, int num_envs, bool evaluation, int32_t* actions, float* log_probs,
                      float* probs);
   absl::Status Score(v1::Unroll* unroll);
   // Sends *unroll (moved in and back out) through the sender. OK when the

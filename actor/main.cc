@@ -1,6 +1,7 @@
 // The actor: wires flags to an Actor.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -11,6 +12,7 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "actor/actor.h"
 #include "base/json.h"
 #include "env/env.h"
@@ -28,7 +30,9 @@ namespace {
 const imca::actor::ActorConfig kDefaults;  // Every default's one definition (with the scenario's tuning).
 }  // namespace
 
-ABSL_FLAG(int, envs, kDefaults.num_envs, "environments stepped together");
+ABSL_FLAG(std::string, algo, "mappo",
+          "the learner's algorithm, whose defaults this actor takes (cmae: 1 env, unrolls of its 300-step episode)");
+ABSL_FLAG(std::optional<int>, envs, std::nullopt, "environments stepped together (default: the algorithm's; --list)");
 ABSL_FLAG(std::optional<int>, unroll_length, std::nullopt, "steps per unroll (default: the scenario's; --list)");
 ABSL_FLAG(int, eval_envs, kDefaults.eval_envs, "evaluation environments (same policy, not trained on)");
 ABSL_FLAG(uint64_t, seed, kDefaults.seed,
@@ -58,13 +62,17 @@ std::string ConfigJson(const imca::actor::ActorConfig& c) {
       .Text();
 }
 
-// Each scenario's defaults (DefaultActorConfig).
+// Each algorithm's defaults per scenario (DefaultActorConfig).
 std::string DefaultsJson() {
-  imca::JsonObject scenarios;
-  for (const std::string& scenario : imca::env::ScenarioNames()) {
-    scenarios.Raw(scenario, ConfigJson(imca::actor::DefaultActorConfig(scenario)));
+  imca::JsonObject algos;
+  for (const std::string& algo : imca::actor::ActorAlgoNames()) {
+    imca::JsonObject scenarios;
+    for (const std::string& scenario : imca::env::ScenarioNames()) {
+      scenarios.Raw(scenario, ConfigJson(imca::actor::DefaultActorConfig(scenario, algo)));
+    }
+    algos.Raw(algo, scenarios.Text());
   }
-  return scenarios.Text();
+  return algos.Text();
 }
 
 }  // namespace
@@ -87,6 +95,7 @@ int main(int argc, char** argv) {
                             .Add("max_door_timer", env::kMaxDoorTimer)
                             .Add("exit_refused", kExitRefused)
                             .Add("exit_misconfigured", kExitMisconfigured)
+                            .Add("algos", actor::ActorAlgoNames())
                             .Raw("actor_defaults", DefaultsJson())
                             .Text()
                             .c_str());
@@ -106,9 +115,14 @@ int main(int argc, char** argv) {
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return fail(std::string(scenario.status().message()));
 
-  actor::ActorConfig config = actor::DefaultActorConfig((*scenario)->name());
+  const std::string algo = absl::GetFlag(FLAGS_algo);
+  const std::vector<std::string> algos = actor::ActorAlgoNames();
+  if (std::find(algos.begin(), algos.end(), algo) == algos.end()) {
+    return fail(absl::StrCat("--algo: '", algo, "' is not one of ", absl::StrJoin(algos, ", ")));
+  }
+  actor::ActorConfig config = actor::DefaultActorConfig((*scenario)->name(), algo);
   config.actor_id = id;
-  config.num_envs = absl::GetFlag(FLAGS_envs);
+  if (const auto envs = absl::GetFlag(FLAGS_envs)) config.num_envs = *envs;
   if (const auto length = absl::GetFlag(FLAGS_unroll_length)) config.unroll_length = *length;
   config.eval_envs = absl::GetFlag(FLAGS_eval_envs);
   config.seed = absl::GetFlag(FLAGS_seed);

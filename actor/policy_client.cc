@@ -21,13 +21,13 @@ PolicyClient::PolicyClient(v1::LearnerService::StubInterface* learner, const env
       on_wait_(std::move(on_wait)) {}
 
 bool PolicyClient::Refresh(bool wait) {
-  return Fetch(policy_.has_value() ? policy_->version() + 1 : 0, /*retry=*/wait, /*until_newer=*/false);
+  return Fetch(held() ? version() + 1 : 0, /*retry=*/wait, /*until_newer=*/false);
 }
 
 bool PolicyClient::Await(int64_t min_version) { return Fetch(min_version, /*retry=*/true, /*until_newer=*/true); }
 
 bool PolicyClient::Restart() {
-  policy_.reset();
+  Drop();
   return Refresh(/*wait=*/true);
 }
 
@@ -68,26 +68,35 @@ bool PolicyClient::Fetch(int64_t min_version, bool retry, bool until_newer) {
       continue;
     }
     backoff.Reset();
-    if (policy.tensors_size() > 0) return Adopt(policy);
-    if (policy_.has_value() &&
-        (policy.version() < policy_->version() || policy.learner_incarnation() != learner_incarnation_)) {
+    // A policy, not a "not modified" answer (a bare version).
+    if (policy.tensors_size() > 0 || policy.has_tabular()) return Adopt(policy);
+    if (held() && (policy.version() < version() || policy.learner_incarnation() != learner_incarnation_)) {
       // Not modified, but the learner restarted from a checkpoint: older
       // than ours, or ours, without the unrolls of it the old one took.
       // Take whatever it has, and deliver that version's share anew.
-      policy_.reset();
+      Drop();
       min_version = 0;
       continue;
     }
-    if (!until_newer) return policy_.has_value();  // Nothing newer: keep acting with ours.
+    if (!until_newer) return held();  // Nothing newer: keep acting with ours.
     if (LearnerDone()) return false;
   }
   return false;
 }
 
 bool PolicyClient::Adopt(const v1::Policy& policy) {
-  absl::StatusOr<PolicyMlp> mlp = PolicyMlp::FromProto(policy);
-  const absl::Status fits =
-      mlp.ok() ? mlp->Fits(obs_dim_, scenario_.num_actions(), scenario_.num_agents()) : mlp.status();
+  std::optional<PolicyMlp> mlp;
+  std::optional<PolicyTable> table;
+  absl::Status fits;
+  if (policy.architecture() == v1::Policy::TABULAR_Q) {
+    absl::StatusOr<PolicyTable> read = PolicyTable::FromProto(policy, scenario_);
+    fits = read.status();
+    if (read.ok()) table = *std::move(read);
+  } else {
+    absl::StatusOr<PolicyMlp> read = PolicyMlp::FromProto(policy);
+    fits = read.ok() ? read->Fits(obs_dim_, scenario_.num_actions(), scenario_.num_agents()) : read.status();
+    if (fits.ok()) mlp = *std::move(read);
+  }
   if (!fits.ok()) {
     error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_.name(), ": ", fits.message()));
     return false;
@@ -98,7 +107,8 @@ bool PolicyClient::Adopt(const v1::Policy& policy) {
       return false;
     }
   }
-  policy_ = *std::move(mlp);
+  mlp_ = std::move(mlp);
+  table_ = std::move(table);
   learner_incarnation_ = policy.learner_incarnation();
   return true;
 }

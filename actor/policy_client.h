@@ -12,6 +12,7 @@
 #include "env/env.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "protocol/policy_mlp.h"
+#include "protocol/policy_table.h"
 
 namespace imca::actor {
 
@@ -58,11 +59,15 @@ class PolicyClient {
   // any failure).
   bool LearnerDone();
 
-  // The policy acted with; nullptr before the first one, or after Restart()
-  // found none.
-  // Not const: evaluating it uses its scratch buffers.
-  PolicyMlp* policy() { return policy_.has_value() ? &*policy_ : nullptr; }
-  int64_t version() const { return policy_.has_value() ? policy_->version() : -1; }
+  // Whether a policy is held: none before the first one, or after
+  // Restart() found none.
+  bool held() const { return mlp_.has_value() || table_.has_value(); }
+  // The policy acted with, a network or (CMAE's) Q-tables: one of the two
+  // is non-null while held(). Not const: evaluating a network uses its
+  // scratch buffers.
+  PolicyMlp* mlp() { return mlp_.has_value() ? &*mlp_ : nullptr; }
+  const PolicyTable* table() const { return table_.has_value() ? &*table_ : nullptr; }
+  int64_t version() const { return mlp_.has_value() ? mlp_->version() : table_.has_value() ? table_->version() : -1; }
   // Why no policy can be had: INTERNAL (the learner's policy does not fit the
   // scenario), the Admit error, or the refusal of a call (credentials). OK
   // otherwise.
@@ -83,7 +88,14 @@ class PolicyClient {
   StopSignal* const stop_;
   const Admit admit_;
   const OnWait on_wait_;
-  std::optional<PolicyMlp> policy_;
+  // Drops the policy held.
+  void Drop() {
+    mlp_.reset();
+    table_.reset();
+  }
+
+  std::optional<PolicyMlp> mlp_;
+  std::optional<PolicyTable> table_;
   uint64_t learner_incarnation_ = 0;  // Of the learner that served policy_.
   absl::Status error_;
   std::chrono::steady_clock::time_point failure_logged_{};

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <random>
@@ -43,6 +44,13 @@ class Rng {
 
   // Uniform double in [0, 1).
   double UniformDouble() { return static_cast<double>(Next() >> 11) * 0x1.0p-53; }
+
+  // The generator's whole state, for checkpoints: SetState(State()) continues
+  // the same stream.
+  std::array<uint64_t, 4> State() const { return {s_[0], s_[1], s_[2], s_[3]}; }
+  void SetState(const std::array<uint64_t, 4>& state) {
+    for (int i = 0; i < 4; ++i) s_[i] = state[i];
+  }
 
   static uint64_t SplitMix64(uint64_t& state) {
     uint64_t z = (state += 0x9e3779b97f4a7c15ULL);

@@ -26,6 +26,7 @@
 #include "envtool/episode_io.h"
 #include "envtool/render.h"
 #include "protocol/policy_mlp.h"
+#include "protocol/policy_table.h"
 
 ABSL_FLAG(uint64_t, seed, 1, "seed of Reset and of the scenario's random draws");
 ABSL_FLAG(std::string, state, "", "start from this state \"z,c1,...,t\" instead of a Reset");
@@ -169,11 +170,18 @@ void Script(Episode& episode, const std::vector<std::vector<int32_t>>& steps) {
   }
 }
 
-// The action probabilities of `policy` in a state, [n][A] (the policy's
-// input is the featurizer's observation of each agent, as an actor's).
+// A policy.pb as actors act with it: a network, or CMAE's Q-tables.
+struct LoadedPolicy {
+  std::optional<PolicyMlp> mlp;
+  std::optional<PolicyTable> table;
+};
+
+// The action probabilities of `policy` in a state, [n][A]: a network's input
+// is the featurizer's observation of each agent, as an actor's; Q-tables
+// act as in an actor's evaluation environments (on the exploitation tables).
 class PolicyProbs {
  public:
-  PolicyProbs(const env::Scenario& scenario, PolicyMlp& policy)
+  PolicyProbs(const env::Scenario& scenario, LoadedPolicy& policy)
       : featurizer_(scenario),
         policy_(policy),
         n_(scenario.num_agents()),
@@ -185,8 +193,12 @@ class PolicyProbs {
   // line and its next actions ask for the same).
   const std::vector<float>& Of(const int32_t* state) {
     if (!last_.empty() && std::equal(last_.begin(), last_.end(), state)) return probs_;
-    for (int a = 0; a < n_; ++a) featurizer_.Observe(state, a, &obs_[a * featurizer_.obs_dim()]);
-    policy_.Probabilities(obs_.data(), n_, probs_.data());
+    if (policy_.table) {
+      policy_.table->Probabilities(state, 1, /*evaluation=*/true, probs_.data());
+    } else {
+      for (int a = 0; a < n_; ++a) featurizer_.Observe(state, a, &obs_[a * featurizer_.obs_dim()]);
+      policy_.mlp->Probabilities(obs_.data(), n_, probs_.data());
+    }
     last_.assign(state, state + state_size_);
     return probs_;
   }
@@ -208,7 +220,7 @@ class PolicyProbs {
 
  private:
   const env::Featurizer featurizer_;
-  PolicyMlp& policy_;
+  LoadedPolicy& policy_;
   const int n_;
   const int state_size_;
   std::vector<float> obs_;
@@ -229,11 +241,21 @@ void Rollout(Episode& episode, const env::Scenario& scenario, PolicyProbs& polic
   }
 }
 
-absl::StatusOr<PolicyMlp> LoadPolicy(const std::string& path, const env::Scenario& scenario) {
+absl::StatusOr<LoadedPolicy> LoadPolicy(const std::string& path, const env::Scenario& scenario) {
   std::ifstream in(path, std::ios::binary);
   v1::Policy proto;
   if (!in || !proto.ParseFromIstream(&in)) {
     return absl::InvalidArgumentError(absl::StrCat("cannot read a policy from '", path, "'"));
+  }
+  LoadedPolicy loaded;
+  if (proto.architecture() == v1::Policy::TABULAR_Q) {
+    absl::StatusOr<PolicyTable> table = PolicyTable::FromProto(proto, scenario);
+    if (!table.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("'", path, "' was trained on another scenario or map: ", table.status().message()));
+    }
+    loaded.table = *std::move(table);
+    return loaded;
   }
   absl::StatusOr<PolicyMlp> policy = PolicyMlp::FromProto(proto);
   if (!policy.ok()) return policy.status();
@@ -243,7 +265,8 @@ absl::StatusOr<PolicyMlp> LoadPolicy(const std::string& path, const env::Scenari
     return absl::InvalidArgumentError(
         absl::StrCat("'", path, "' was trained on another scenario or map: ", fits.message()));
   }
-  return policy;
+  loaded.mlp = *std::move(policy);
+  return loaded;
 }
 
 int Main(const std::vector<char*>& args) {
@@ -286,7 +309,7 @@ int Main(const std::vector<char*>& args) {
     if (!parsed.ok()) return Fail(kUsageError, parsed.status().message());
     steps = *std::move(parsed);
   }
-  std::optional<PolicyMlp> policy;
+  std::optional<LoadedPolicy> policy;
   if (command == "rollout") {
     const std::string path = absl::GetFlag(FLAGS_policy);
     if (path.empty()) return Fail(kUsageError, "--policy: the policy.pb file is required");

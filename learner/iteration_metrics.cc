@@ -87,6 +87,22 @@ const std::vector<Column>& IterationColumns() {
        Export::kGauge, "imca_learner_critic_loss", "maddpg"},
       {"replay_size", "%.0f", 1, "Transitions in the replay buffer.", nullptr, Export::kGauge,
        "imca_learner_replay_transitions", "maddpg"},
+
+      // CMAE's own (learner/algorithms/cmae/).
+      {"cmae_episodes", "%.0f", 1, "Episodes CMAE has finished (each chose a goal and refitted the tables).", nullptr,
+       Export::kGauge, "imca_learner_cmae_episodes", "cmae"},
+      {"cmae_exploit_weight", "%.4f", 1, "Weight of the exploitation tables in acting, episodes / --cmae_episodes.",
+       nullptr, Export::kGauge, "imca_learner_cmae_exploit_weight", "cmae"},
+      {"cmae_goals_reached", "%.4f", 1, "Share of the iteration's goals whose way in was in the replay.", nullptr,
+       Export::kCsvOnly, nullptr, "cmae"},
+      {"cmae_space_vars", "%.0f", 1, "Variables of the restricted space goals are chosen in.", nullptr,
+       Export::kGauge, "imca_learner_cmae_space_variables", "cmae"},
+      {"cmae_space_entropy", "%.6g", 1, "Normalised entropy of that space's counts.", nullptr, Export::kCsvOnly,
+       nullptr, "cmae"},
+      {"cmae_exploit_states", "%.0f", 1, "Joint states where agent 1's exploitation table is not all 0.", nullptr,
+       Export::kGauge, "imca_learner_cmae_exploit_states", "cmae"},
+      {"cmae_replay", "%.0f", 1, "Transitions in CMAE's replay.", nullptr, Export::kGauge,
+       "imca_learner_cmae_replay_transitions", "cmae"},
   };
   return columns;
 }

@@ -15,9 +15,11 @@
 #include "base/enum_names.h"
 #include "base/lap.h"
 #include "base/status_macros.h"
+#include "learner/algorithms/cmae/cmae.h"
 #include "learner/algorithms/maddpg/maddpg.h"
 #include "learner/algorithms/mappo/mappo.h"
 #include "nn/threads.h"
+#include "protocol/policy_table.h"
 #include "protocol/unroll_check.h"
 
 namespace imca::learner {
@@ -47,7 +49,7 @@ constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "st
                                                        {CriticInput::kJointObs, "joint_obs"}};
 constexpr EnumName<TimeLimit> kTimeLimitNames[] = {{TimeLimit::kBootstrap, "bootstrap"},
                                                    {TimeLimit::kTerminal, "terminal"}};
-constexpr EnumName<Algo> kAlgoNames[] = {{Algo::kMappo, "mappo"}, {Algo::kMaddpg, "maddpg"}};
+constexpr EnumName<Algo> kAlgoNames[] = {{Algo::kMappo, "mappo"}, {Algo::kMaddpg, "maddpg"}, {Algo::kCmae, "cmae"}};
 
 absl::StatusOr<std::unique_ptr<Algorithm>> MakeAlgorithm(const env::Scenario* scenario, const LearnerConfig& config) {
   switch (config.algo) {
@@ -58,6 +60,10 @@ absl::StatusOr<std::unique_ptr<Algorithm>> MakeAlgorithm(const env::Scenario* sc
     case Algo::kMaddpg: {
       IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Maddpg> maddpg, Maddpg::Create(scenario, config));
       return std::unique_ptr<Algorithm>(std::move(maddpg));
+    }
+    case Algo::kCmae: {
+      IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Cmae> cmae, Cmae::Create(scenario, config));
+      return std::unique_ptr<Algorithm>(std::move(cmae));
     }
   }
   return absl::InvalidArgumentError("unknown algo");
@@ -83,6 +89,14 @@ LearnerConfig DefaultLearnerConfig(absl::string_view scenario, Algo algo) {
   config.ppo.learning_rate = tuning.learning_rate.value_or(config.ppo.learning_rate);
   config.ppo.separate_optimizers = tuning.separate_optimizers.value_or(config.ppo.separate_optimizers);
   if (algo == Algo::kMaddpg) config.synchronous = false;
+  if (algo == Algo::kCmae) {
+    // CMAE's own loop: one environment, the tables updated at each episode's
+    // end and acted with from the next (one actor acting a 300-step unroll,
+    // its episode, per version), for at most 15,000 episodes of 300 steps.
+    config.actors = 1;
+    config.batch_steps = kCmaeEpisodeSteps;
+    config.budget_steps = config.cmae.total_episodes * kCmaeEpisodeSteps;
+  }
   return config;
 }
 

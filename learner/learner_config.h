@@ -57,12 +57,37 @@ struct MaddpgConfig {
   bool share_parameters = true;
 };
 
+// CMAE as its released gridworld code runs it (learner/algorithms/cmae/cmae.h,
+// BASELINES.md 3.1, docs/baselines.md "CMAE"): main.py's defaults and the
+// flags its scripts pass (--tree_subspace --stochastic_select_subspace
+// --mixed_explore); its discount is this struct's, not LearnerConfig::gamma.
+struct CmaeConfig {
+  double gamma = 0.95;
+  double explore_lr = 0.1;         // alpha1: the exploration tables' learning rate.
+  double exploit_lr = 0.05;        // alpha2: the exploitation tables'.
+  int64_t replay = 400000;         // Transitions kept (replay_size).
+  // Acting mixes the tables with weight episodes / total_episodes on the
+  // exploitation side (1 from then on).
+  int64_t total_episodes = 15000;
+  int goal_samples = 1024;         // Replay states a goal is chosen among.
+  int batch = 512;                 // Transitions of an exploitation fit.
+  int entropy_every = 20;          // Goals between choices of the restricted space.
+  double recip_t = 50;             // Reciprocal temperature of that choice.
+  int tracked = 10;                // Restricted spaces taken off the queue per choice (subspace_q_size).
+  // A (state, joint action) seen this often goes into the goal sampler's
+  // replay no more (insert_data's th).
+  int64_t insert_threshold = 10000;
+  // Refuse a scenario whose tables could outgrow this (Cmae::TableBytes).
+  int64_t max_table_mb = 4096;
+};
+
 // The learner's algorithm.
 enum class Algo {
   kMappo,   // On-policy multi-agent PPO (learner/algorithms/mappo/mappo.h).
   kMaddpg,  // Off-policy MADDPG (learner/algorithms/maddpg/maddpg.h).
+  kCmae,    // Tabular CMAE (learner/algorithms/cmae/cmae.h).
 };
-// "mappo" / "maddpg"; the parser returns INVALID_ARGUMENT naming them.
+// "mappo" / "maddpg" / "cmae"; the parser returns INVALID_ARGUMENT naming them.
 std::string AlgoName(Algo algo);
 std::vector<std::string> AlgoNames();
 absl::StatusOr<Algo> ParseAlgo(const std::string& name);
@@ -75,6 +100,7 @@ struct LearnerConfig {
   int threads = 1;
   PpoConfig ppo;                  // MAPPO only; its seed and threads are the two above.
   MaddpgConfig maddpg;            // MADDPG only; its discount is `gamma`.
+  CmaeConfig cmae;                // CMAE only.
   CriticInput critic_input = CriticInput::kState;  // MAPPO only (MADDPG's critic: joint obs and actions).
   TimeLimit time_limit = TimeLimit::kBootstrap;
   // Synchronous collection: an iteration trains only on unrolls acted with

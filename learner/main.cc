@@ -30,9 +30,25 @@ namespace {
 const imca::learner::LearnerConfig kDefaults;
 }  // namespace
 
-ABSL_FLAG(int64_t, steps, kDefaults.budget_steps, "budget in joint env steps (0: until stopped)");
+ABSL_FLAG(std::optional<int64_t>, steps, std::nullopt,
+          "budget in joint env steps (0: until stopped); default: the algorithm's (--list)");
 ABSL_FLAG(std::string, algo, imca::learner::AlgoName(kDefaults.algo),
-          "mappo (on-policy PPO) or maddpg (off-policy, replay buffer; docs/learner.md)");
+          "mappo (on-policy PPO), maddpg (off-policy, replay buffer) or cmae (tabular; docs/learner.md)");
+ABSL_FLAG(double, cmae_gamma, kDefaults.cmae.gamma, "cmae: discount of its Q-tables");
+ABSL_FLAG(double, cmae_explore_lr, kDefaults.cmae.explore_lr, "cmae: the exploration tables' learning rate (alpha1)");
+ABSL_FLAG(double, cmae_exploit_lr, kDefaults.cmae.exploit_lr, "cmae: the exploitation tables' learning rate (alpha2)");
+ABSL_FLAG(int64_t, cmae_replay, kDefaults.cmae.replay, "cmae: replay capacity in joint transitions");
+ABSL_FLAG(int64_t, cmae_episodes, kDefaults.cmae.total_episodes,
+          "cmae: episodes over which acting moves from the exploration to the exploitation tables");
+ABSL_FLAG(int, cmae_goal_samples, kDefaults.cmae.goal_samples, "cmae: replay states each goal is chosen among");
+ABSL_FLAG(int, cmae_batch, kDefaults.cmae.batch, "cmae: transitions of each exploitation fit");
+ABSL_FLAG(int, cmae_entropy_every, kDefaults.cmae.entropy_every, "cmae: goals between choices of the restricted space");
+ABSL_FLAG(double, cmae_recip_t, kDefaults.cmae.recip_t, "cmae: reciprocal temperature of that choice");
+ABSL_FLAG(int, cmae_tracked, kDefaults.cmae.tracked, "cmae: restricted spaces weighed at each choice");
+ABSL_FLAG(int64_t, cmae_insert_threshold, kDefaults.cmae.insert_threshold,
+          "cmae: a (state, joint action) seen this often enters the goal replay no more");
+ABSL_FLAG(int64_t, cmae_max_table_mb, kDefaults.cmae.max_table_mb,
+          "cmae: refuse a scenario whose tables could outgrow this many MB");
 ABSL_FLAG(int, maddpg_hidden, kDefaults.maddpg.hidden, "maddpg: hidden layer width (actor and critic)");
 ABSL_FLAG(double, maddpg_actor_lr, kDefaults.maddpg.actor_lr, "maddpg: actor Adam learning rate");
 ABSL_FLAG(double, maddpg_critic_lr, kDefaults.maddpg.critic_lr, "maddpg: critic Adam learning rate");
@@ -54,9 +70,9 @@ ABSL_FLAG(std::optional<int64_t>, batch_steps, std::nullopt,
 ABSL_FLAG(bool, deterministic, kDefaults.deterministic,
           "add each batch's unrolls in (actor id, sequence) order once it is whole, not as they arrive: with the "
           "reward server's --deterministic, a run is a function of its configuration (needs --synchronous)");
-ABSL_FLAG(int, actors, kDefaults.actors,
+ABSL_FLAG(std::optional<int>, actors, std::nullopt,
           "actors collecting for a synchronous learner: each policy version asks each for batch_steps / actors "
-          "env steps");
+          "env steps; default: the algorithm's (--list)");
 ABSL_FLAG(int, epochs, kDefaults.ppo.epochs, "PPO epochs per iteration");
 ABSL_FLAG(int, minibatches, kDefaults.ppo.minibatches, "PPO minibatches per epoch");
 ABSL_FLAG(std::optional<double>, lr, std::nullopt, "Adam learning rate (default: the scenario's; --list)");
@@ -153,6 +169,18 @@ absl::StatusOr<imca::learner::LearnerConfig> ConfigFromFlags(absl::string_view s
   config.maddpg.learning_starts = absl::GetFlag(FLAGS_maddpg_learning_starts);
   config.maddpg.updates_per_step = absl::GetFlag(FLAGS_updates_per_step);
   config.maddpg.share_parameters = absl::GetFlag(FLAGS_maddpg_share);
+  config.cmae.gamma = absl::GetFlag(FLAGS_cmae_gamma);
+  config.cmae.explore_lr = absl::GetFlag(FLAGS_cmae_explore_lr);
+  config.cmae.exploit_lr = absl::GetFlag(FLAGS_cmae_exploit_lr);
+  config.cmae.replay = absl::GetFlag(FLAGS_cmae_replay);
+  config.cmae.total_episodes = absl::GetFlag(FLAGS_cmae_episodes);
+  config.cmae.goal_samples = absl::GetFlag(FLAGS_cmae_goal_samples);
+  config.cmae.batch = absl::GetFlag(FLAGS_cmae_batch);
+  config.cmae.entropy_every = absl::GetFlag(FLAGS_cmae_entropy_every);
+  config.cmae.recip_t = absl::GetFlag(FLAGS_cmae_recip_t);
+  config.cmae.tracked = absl::GetFlag(FLAGS_cmae_tracked);
+  config.cmae.insert_threshold = absl::GetFlag(FLAGS_cmae_insert_threshold);
+  config.cmae.max_table_mb = absl::GetFlag(FLAGS_cmae_max_table_mb);
   config.ppo.hidden = absl::GetFlag(FLAGS_hidden);
   if (const auto lr = absl::GetFlag(FLAGS_lr)) config.ppo.learning_rate = *lr;
   config.ppo.epochs = absl::GetFlag(FLAGS_epochs);
@@ -194,7 +222,7 @@ absl::StatusOr<imca::learner::LearnerConfig> ConfigFromFlags(absl::string_view s
   }
   config.time_limit = *time_limit;
   if (const auto synchronous = absl::GetFlag(FLAGS_synchronous)) config.synchronous = *synchronous;
-  config.actors = absl::GetFlag(FLAGS_actors);
+  if (const auto actors = absl::GetFlag(FLAGS_actors)) config.actors = *actors;
   config.deterministic = absl::GetFlag(FLAGS_deterministic);
   config.seed = absl::GetFlag(FLAGS_seed);
   config.threads = absl::GetFlag(FLAGS_threads);
@@ -206,7 +234,7 @@ absl::StatusOr<imca::learner::LearnerConfig> ConfigFromFlags(absl::string_view s
   if (const auto batch_steps = absl::GetFlag(FLAGS_batch_steps)) config.batch_steps = *batch_steps;
   config.max_policy_lag = absl::GetFlag(FLAGS_max_policy_lag);
   config.queue_capacity = absl::GetFlag(FLAGS_queue_capacity);
-  config.budget_steps = absl::GetFlag(FLAGS_steps);
+  if (const auto steps = absl::GetFlag(FLAGS_steps)) config.budget_steps = *steps;
   config.run_dir = absl::GetFlag(FLAGS_run_dir);
   config.trained_log = absl::GetFlag(FLAGS_trained_log);
   config.checkpoint_every = absl::GetFlag(FLAGS_checkpoint_every);
@@ -276,6 +304,18 @@ std::string ConfigJson(const imca::learner::LearnerConfig& c) {
       .Add("maddpg_learning_starts", c.maddpg.learning_starts)
       .AddExact("updates_per_step", c.maddpg.updates_per_step)
       .Add("maddpg_share", c.maddpg.share_parameters)
+      .AddExact("cmae_gamma", c.cmae.gamma)
+      .AddExact("cmae_explore_lr", c.cmae.explore_lr)
+      .AddExact("cmae_exploit_lr", c.cmae.exploit_lr)
+      .Add("cmae_replay", c.cmae.replay)
+      .Add("cmae_episodes", c.cmae.total_episodes)
+      .Add("cmae_goal_samples", c.cmae.goal_samples)
+      .Add("cmae_batch", c.cmae.batch)
+      .Add("cmae_entropy_every", c.cmae.entropy_every)
+      .AddExact("cmae_recip_t", c.cmae.recip_t)
+      .Add("cmae_tracked", c.cmae.tracked)
+      .Add("cmae_insert_threshold", c.cmae.insert_threshold)
+      .Add("cmae_max_table_mb", c.cmae.max_table_mb)
       .Add("checkpoint_every", c.checkpoint_every)
       .AddExact("checkpoint_seconds", c.checkpoint_seconds);
   return json.Text();

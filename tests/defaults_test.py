@@ -73,6 +73,7 @@ class OneHomeTest(unittest.TestCase):
 
     def test_the_algorithm_and_reward_kind_defaults_too(self):
         self.check_scenario("spread", ("--algo", "maddpg"))
+        self.check_scenario("pass_cmae", ("--algo", "cmae"))
         self.check_scenario("pass", ("--reward", "eiti"))
 
     def test_list_prints_what_print_config_resolves(self):
@@ -80,8 +81,20 @@ class OneHomeTest(unittest.TestCase):
         for scenario in ("coop_nav", "predator_prey"):
             self.assertEqual(known["learner_defaults"]["mappo"][scenario],
                              print_config("learner", [f"--scenario={scenario}"]))
-            self.assertEqual(known["actor_defaults"][scenario], print_config("actor", [f"--scenario={scenario}"]))
+            self.assertEqual(known["actor_defaults"]["mappo"][scenario],
+                             print_config("actor", [f"--scenario={scenario}"]))
         self.assertEqual(known["reward_defaults"]["rnd"], print_config("reward_server", ["--reward=rnd"]))
+        # CMAE's loop: one actor of one env acting a 300-step episode per version.
+        self.assertEqual(known["actor_defaults"]["cmae"]["pass_cmae"],
+                         print_config("actor", ["--scenario=pass_cmae", "--algo=cmae"]))
+        self.assertEqual(known["learner_defaults"]["cmae"]["pass_cmae"],
+                         print_config("learner", ["--scenario=pass_cmae", "--algo=cmae"]))
+        cmae = known["learner_defaults"]["cmae"]["pass_cmae"]
+        self.assertEqual((cmae["actors"], cmae["batch_steps"], cmae["steps"]), (1, 300, 4_500_000))
+        self.assertEqual((known["actor_defaults"]["cmae"]["pass_cmae"]["envs"],
+                          known["actor_defaults"]["cmae"]["pass_cmae"]["unroll_length"]), (1, 300))
+        # The actor and the learner name the same algorithms.
+        self.assertEqual(sorted(known["actor_defaults"]), sorted(known["learner_defaults"]))
 
     def test_print_config_passed_back_resolves_the_same(self):
         for program in binaries.PROGRAMS:

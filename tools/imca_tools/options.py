@@ -57,8 +57,9 @@ OPTIONS = [
      dict(type=int, help="reward server snapshot interval in s (count kinds also journal every increment)")),
     ("--seed", {"reward_server": "seed", "learner": "seed"},
      dict(type=int, help="seed of the run (actor i acts with seed * 1000 + i + 1)")),
-    ("--algo", {"learner": "algo"}, dict(choices=lambda k: k["algos"],
-                                         help="mappo (on-policy PPO) or maddpg (off-policy; docs/learner.md)")),
+    ("--algo", {"learner": "algo", "actor": "algo"},
+     dict(choices=lambda k: k["algos"],
+          help="mappo (on-policy PPO), maddpg (off-policy) or cmae (tabular; docs/learner.md)")),
     ("--steps", {"learner": "steps"}, dict(type=positive_int, help="budget in joint env steps")),
     ("--actors", {"learner": "actors"}, dict(type=positive_int, help="actor processes")),
     ("--batch-steps", {"learner": "batch_steps"}, dict(type=positive_int,
@@ -115,6 +116,21 @@ OPTIONS = [
     ("--maddpg-tau", {"learner": "maddpg_tau"}, dict(type=float, help="maddpg: soft target update rate")),
     ("--concurrent-critic", {"learner": "concurrent_critic"}, dict(type=boolean, metavar="BOOL",
                                                                    help="critic passes on a second learner thread")),
+    ("--cmae-episodes", {"learner": "cmae_episodes"},
+     dict(type=int, help="cmae: episodes over which acting moves to the exploitation tables")),
+    ("--cmae-gamma", {"learner": "cmae_gamma"}, dict(type=float, help="cmae: discount of its Q-tables")),
+    ("--cmae-explore-lr", {"learner": "cmae_explore_lr"}, dict(type=float, help="cmae: exploration tables' rate")),
+    ("--cmae-exploit-lr", {"learner": "cmae_exploit_lr"}, dict(type=float, help="cmae: exploitation tables' rate")),
+    ("--cmae-replay", {"learner": "cmae_replay"}, dict(type=positive_int, help="cmae: replay capacity")),
+    ("--cmae-goal-samples", {"learner": "cmae_goal_samples"},
+     dict(type=positive_int, help="cmae: replay states a goal is chosen among")),
+    ("--cmae-batch", {"learner": "cmae_batch"}, dict(type=int, help="cmae: transitions of an exploitation fit")),
+    ("--cmae-recip-t", {"learner": "cmae_recip_t"},
+     dict(type=float, help="cmae: reciprocal temperature of the restricted-space choice")),
+    ("--cmae-tracked", {"learner": "cmae_tracked"},
+     dict(type=positive_int, help="cmae: restricted spaces weighed at each choice")),
+    ("--cmae-max-table-mb", {"learner": "cmae_max_table_mb"},
+     dict(type=positive_int, help="cmae: refuse a scenario whose tables could outgrow this")),
     ("--envs-per-actor", {"actor": "envs"}, dict(type=positive_int, help="environments of each actor")),
     ("--unroll-length", {"actor": "unroll_length"}, dict(type=positive_int,
                                                          help="steps per unroll")),
@@ -174,7 +190,8 @@ def default_text(flag, programs, known):
     if program == "reward_server":
         values, default_key = {r: d.get(name) for r, d in known["reward_defaults"].items()}, known["default_reward"]
     elif program == "actor":
-        values, default_key = {s: d.get(name) for s, d in known["actor_defaults"].items()}, known["default_scenario"]
+        values, default_key = ({s: d.get(name) for s, d in known["actor_defaults"]["mappo"].items()},
+                               known["default_scenario"])
     elif program == "learner":
         table = known["learner_defaults"]
         if any(d.get(name) is None for by_scenario in table.values() for d in by_scenario.values()):
@@ -197,7 +214,7 @@ def resolved_defaults(args):
     known = binaries.facts()
     return {"reward_server": known["reward_defaults"][args.reward],
             "learner": known["learner_defaults"][args.algo][args.scenario],
-            "actor": known["actor_defaults"][args.scenario]}
+            "actor": known["actor_defaults"][args.algo][args.scenario]}
 
 
 def default_of(flag, args, defaults=None):
