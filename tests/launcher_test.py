@@ -95,6 +95,33 @@ class LauncherDefaultsTest(unittest.TestCase):
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
             self.assertIn(flag, r.stderr)
 
+    def test_cmae_trains_and_resumes_from_its_checkpoint(self):
+        args = plan.parse_args(["--algo", "cmae", "--scenario", "pass_cmae"])
+        self.assertEqual((args.actors, args.envs_per_actor, args.unroll_length, args.batch_steps, args.steps),
+                         (1, 1, 300, 300, 4_500_000))
+        self.assertIn("--algo=cmae", options.program_flags(args, "actor"))
+        with tempfile.TemporaryDirectory() as out:
+            run_dir = os.path.join(out, "run")
+            r = run(["--algo", "cmae", "--scenario", "pass_cmae", "--steps", "30000", "--out", run_dir, "--quiet"])
+            self.assertEqual(r.returncode, 0, r.stderr)
+            rows = runs.read_metrics(os.path.join(run_dir, "metrics.csv"))
+            # One episode of 300 steps per version; acting moves to the
+            # exploitation tables by episodes / 15000.
+            self.assertEqual((rows[-1]["env_steps"], rows[-1]["cmae_episodes"]), ("30000", "100"))
+            self.assertAlmostEqual(float(rows[-1]["cmae_exploit_weight"]), 100 / 15000, places=4)
+            self.assertGreater(int(rows[-1]["cmae_replay"]), 0)
+            self.assertTrue(os.path.isfile(os.path.join(run_dir, "episode.gif")), r.stderr)
+            # Resumed, it goes on from the checkpoint's tables and episodes.
+            r = run(["--resume", run_dir, "--steps", "45000", "--quiet"])
+            self.assertEqual(r.returncode, 0, r.stderr)
+            rows = runs.read_metrics(os.path.join(run_dir, "metrics.csv"))
+            self.assertEqual((rows[-1]["env_steps"], rows[-1]["cmae_episodes"]), ("45000", "150"))
+        # A joint state too large for its tables: one line, before anything starts.
+        r = run(["--algo", "cmae", "--scenario", "coop_nav", "--num-agents", "9"])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("2^62", r.stderr)
+
     def test_a_share_that_is_no_whole_number_of_unrolls_ends_the_run_at_once(self):
         # 2048 / 2 actors = 1024 steps each, not a whole number of 24 x 32 unrolls.
         with tempfile.TemporaryDirectory() as out:
