@@ -88,6 +88,13 @@ def steps_to(rows, threshold, key="success_rate"):
     return int(row["env_steps"]) if row else None
 
 
+def wall_to(rows, threshold, key="success_rate"):
+    """wall_seconds of first_reaching (None if never): training's own clock,
+    earlier runs of a resumed one included."""
+    row = first_reaching(rows, threshold, key)
+    return float(row["wall_seconds"]) if row else None
+
+
 def finished_summary(run_dir, budget):
     """summary.json of a run that reached `budget` env steps uninterrupted, else None."""
     try:
@@ -112,6 +119,7 @@ def write_summary(run_dir, config, rows, interrupted):
         "final_episode_return": float(last["episode_return"]) if last else 0.0,
         "steps_to_80pct_success": steps_to(rows, 0.8),
         "steps_to_90pct_success": steps_to(rows, 0.9),
+        "wall_to_90pct_success": wall_to(rows, 0.9),
         # Over the last 200 training episodes, as marlbenchmark/on-policy
         # reports success (the evaluation window lags: docs/benchmarks.md).
         "steps_to_80pct_train_success": steps_to(rows, 0.8, "train_success_rate"),
