@@ -1,6 +1,6 @@
 """./imca experiment: a grid of training runs, resumable, with tables and plots.
 
-  ./imca experiment --preset paper|edti|quick [--out DIR] [--jobs N]
+  ./imca experiment --preset paper|edti|headline|frontier|quick [--out DIR] [--jobs N]
   ./imca experiment --grid FILE.json [--out DIR] [--jobs N]
   ./imca experiment --report DIR        (tables and plots of what DIR holds)
   ./imca experiment --status DIR        (each cell: done, running, pending, failed, not run)

@@ -25,14 +25,13 @@ using cmae::WritePod;
 
 namespace {
 
-constexpr char kTag[] = "IMCA-CMAE-1";
+constexpr char kTag[] = "IMCA-CMAE-2";
 
-// An environment's episode so far: its steps, each with whether it goes
-// into the goal replay too.
+// An environment's episode so far, as far as the learner saw it unbroken.
 struct OpenEpisode {
   uint64_t incarnation = 0;
+  int64_t episode_id = -1;
   std::vector<Transition> steps;
-  std::vector<uint8_t> to_goal_replay;
 };
 
 }  // namespace
@@ -55,7 +54,7 @@ struct Cmae::Impl {
     }
   }
 
-  void AddStep(const std::string& actor, uint64_t incarnation, int env, const Transition& t);
+  void AddStep(const std::string& actor, uint64_t incarnation, int env, int64_t episode_id, const Transition& t);
   void EndEpisode(OpenEpisode& episode);
   double Weight() const {
     return c.total_episodes > 0 ? std::min(1.0, static_cast<double>(episodes) / c.total_episodes) : 1.0;
@@ -84,31 +83,37 @@ struct Cmae::Impl {
   double it_seconds = 0;
 };
 
-void Cmae::Impl::AddStep(const std::string& actor, uint64_t incarnation, int env, const Transition& t) {
-  std::vector<int32_t> vars(space.num_vars());
-  space.Decode(t.state, vars.data());
-  subspaces.Count(vars.data(), t.joint_action);
-  const uint32_t seen = ++joint_counts[t.state * space.joint_actions() + t.joint_action];
+void Cmae::Impl::AddStep(const std::string& actor, uint64_t incarnation, int env, int64_t episode_id,
+                         const Transition& t) {
   OpenEpisode& episode = open[{actor, env}];
-  if (episode.incarnation != incarnation) {
-    // A restarted actor's environments began anew: its open episodes ended
-    // unseen.
+  if (episode.incarnation != incarnation || episode.episode_id != episode_id ||
+      (!episode.steps.empty() && episode.steps.back().next_state != t.state)) {
+    // Not the steps' continuation: the actor restarted (its environments
+    // began anew), or went back with the learner to a checkpoint and acted
+    // on. What was seen of the old episode is dropped, unseen by the
+    // tables; the rest enters as an episode of its own.
     episode.steps.clear();
-    episode.to_goal_replay.clear();
     episode.incarnation = incarnation;
+    episode.episode_id = episode_id;
   }
   episode.steps.push_back(t);
-  episode.to_goal_replay.push_back(seen < c.insert_threshold);
   if (t.done) EndEpisode(episode);
 }
 
 void Cmae::Impl::EndEpisode(OpenEpisode& episode) {
-  for (size_t i = 0; i < episode.steps.size(); ++i) {
-    replay.Insert(episode.steps[i]);
-    if (episode.to_goal_replay[i]) goal_replay.Insert(episode.steps[i]);
+  // Its steps, in order, are counted (every tracked restricted space, and
+  // the joint count the goal replay's threshold reads) and stored: CMAE
+  // does both per step, the same with one environment, and only steps of
+  // whole episodes are counted here.
+  std::vector<int32_t> vars(space.num_vars());
+  for (const Transition& t : episode.steps) {
+    space.Decode(t.state, vars.data());
+    subspaces.Count(vars.data(), t.joint_action);
+    const uint32_t seen = ++joint_counts[t.state * space.joint_actions() + t.joint_action];
+    replay.Insert(t);
+    if (seen < c.insert_threshold) goal_replay.Insert(t);
   }
   episode.steps.clear();
-  episode.to_goal_replay.clear();
   ++episodes;
 
   // The goal: a least-counted (state, joint action) of the chosen
@@ -116,17 +121,9 @@ void Cmae::Impl::EndEpisode(OpenEpisode& episode) {
   const std::vector<int64_t> samples = goal_replay.SampleDistinct(c.goal_samples, rng);
   auto vars_of = [&](int i, int32_t* vars) { space.Decode(goal_replay.at(samples[i]).state, vars); };
   auto each_step = [&](const std::function<void(const int32_t*, int64_t)>& visit) {
-    std::vector<int32_t> vars(space.num_vars());
     for (int64_t i = 0; i < goal_replay.size(); ++i) {
       space.Decode(goal_replay.at(i).state, vars.data());
       visit(vars.data(), goal_replay.at(i).joint_action);
-    }
-    for (const auto& [key, other] : open) {  // Counted steps of episodes still open.
-      for (size_t i = 0; i < other.steps.size(); ++i) {
-        if (!other.to_goal_replay[i]) continue;
-        space.Decode(other.steps[i].state, vars.data());
-        visit(vars.data(), other.steps[i].joint_action);
-      }
     }
   };
   const std::optional<std::pair<int, int64_t>> chosen =
@@ -192,15 +189,14 @@ void Cmae::Impl::Write(std::ostream& out) const {
     out.write(key.first.data(), static_cast<std::streamsize>(key.first.size()));
     WritePod(out, static_cast<int32_t>(key.second));
     WritePod(out, episode.incarnation);
+    WritePod(out, episode.episode_id);
     WritePod(out, static_cast<int64_t>(episode.steps.size()));
-    for (size_t i = 0; i < episode.steps.size(); ++i) {
-      const Transition& t = episode.steps[i];
+    for (const Transition& t : episode.steps) {
       WritePod(out, t.state);
       WritePod(out, t.next_state);
       WritePod(out, t.joint_action);
       WritePod(out, t.reward);
       WritePod(out, static_cast<uint8_t>(t.done));
-      WritePod(out, episode.to_goal_replay[i]);
     }
   }
 }
@@ -252,19 +248,18 @@ absl::Status Cmae::Impl::Read(std::istream& in) {
     std::string actor(length, '\0');
     OpenEpisode episode;
     if (!in.read(actor.data(), length) || !ReadPod(in, &env) || !ReadPod(in, &episode.incarnation) ||
-        !ReadPod(in, &steps) || steps < 0) {
+        !ReadPod(in, &episode.episode_id) || !ReadPod(in, &steps) || steps < 0) {
       return absl::DataLossError("checkpoint: open episodes cut short");
     }
     for (int64_t s = 0; s < steps; ++s) {
       Transition t;
-      uint8_t done = 0, to_goal = 0;
+      uint8_t done = 0;
       if (!ReadPod(in, &t.state) || !ReadPod(in, &t.next_state) || !ReadPod(in, &t.joint_action) ||
-          !ReadPod(in, &t.reward) || !ReadPod(in, &done) || !ReadPod(in, &to_goal)) {
+          !ReadPod(in, &t.reward) || !ReadPod(in, &done)) {
         return absl::DataLossError("checkpoint: open episodes cut short");
       }
       t.done = done != 0;
       episode.steps.push_back(t);
-      episode.to_goal_replay.push_back(to_goal);
     }
     open.emplace(std::make_pair(std::move(actor), env), std::move(episode));
   }
@@ -357,7 +352,7 @@ absl::Status Cmae::Add(const FeaturisedUnroll& queued) {
       for (int a = 0; a < n; ++a) reward += u.rewards(static_cast<int>(row * n + a));
       step.reward = reward / n;
       step.done = u.terminated(static_cast<int>(row)) || u.truncated(static_cast<int>(row));
-      m.AddStep(u.actor_id(), u.incarnation(), e, step);
+      m.AddStep(u.actor_id(), u.incarnation(), e, u.episode_ids(static_cast<int>(row)), step);
     }
   }
   m.it_seconds += Lap(start);

@@ -21,18 +21,18 @@ namespace imca::learner {
 // Q-learning over joint states (env/joint_state.h), one exploration and one
 // exploitation table per agent, acting greedily on their mix.
 //
-// Each step of an unroll, in time order: the (joint state, joint action)
-// is counted in every tracked restricted space (cmae::Subspaces) and in the
-// joint count; the transition joins its environment's episode, whose steps
-// go into the replays when it ends (so that an episode is one run of slots
-// with any number of environments; with one, as the code inserts them). At
-// each episode end: a goal (state, joint action) of least restricted count
-// among goal_samples states of the goal replay (which stops taking a pair
-// seen insert_threshold times); each agent's exploitation table fitted on
-// a batch of the replay led by the first successful episode in it; each
-// agent's exploration table reset and fitted on the replay's episode into
-// the goal state, with reward 1 only for the goal pair and a terminal goal
-// transition after it. The extrinsic reward is the team's (the mean over
+// Each step of an unroll (in time order) joins its (actor, env) episode;
+// an episode enters when it ends (so that it is one run of slots with any
+// number of environments; with one, as the code inserts and counts each
+// step): each step is counted in every tracked restricted space
+// (cmae::Subspaces) and in the joint count, and stored in the replay and,
+// while its pair was seen fewer than insert_threshold times, the goal
+// replay. Then, at that episode end: a goal (state, joint action) of least
+// restricted count among goal_samples states of the goal replay; each
+// agent's exploitation table fitted on a batch of the replay led by the
+// first successful episode in it; each agent's exploration table reset and
+// fitted on the replay's episode into the goal state, with reward 1 only
+// for the goal pair and a terminal goal // transition after it. The extrinsic reward is the team's (the mean over
 // agents); the reward server's intrinsic rewards are not used. Training
 // happens as unrolls are added (off-policy); Train only reports.
 //

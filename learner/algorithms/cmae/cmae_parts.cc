@@ -87,23 +87,38 @@ absl::Status QTable::Read(std::istream& in) {
 
 Replay::Replay(int64_t capacity) : capacity_(capacity), slots_(capacity), stamps_(capacity, 0) {}
 
+int64_t Replay::Slots::Lowest() const {
+  size_t lo = head, hi = slots.size() - 1;
+  while (lo < hi) {
+    const size_t mid = lo + (hi - lo) / 2;
+    if (slots[mid] > slots[hi]) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return slots[lo];
+}
+
 void Replay::Unindex(int64_t slot) {
+  // The slot overwritten is the ring's oldest, so its state's oldest.
   auto it = slots_of_state_.find(slots_[slot].state);
   if (it != slots_of_state_.end()) {
-    std::vector<int64_t>& list = it->second;
-    const auto found = std::find(list.begin(), list.end(), slot);
-    if (found != list.end()) {
-      *found = list.back();
-      list.pop_back();
+    Slots& s = it->second;
+    if (s.head < s.slots.size() && s.slots[s.head] == slot) ++s.head;
+    if (s.head == s.slots.size()) {
+      slots_of_state_.erase(it);
+    } else if (s.head * 2 > s.slots.size()) {
+      s.slots.erase(s.slots.begin(), s.slots.begin() + static_cast<std::ptrdiff_t>(s.head));
+      s.head = 0;
     }
-    if (list.empty()) slots_of_state_.erase(it);
   }
   positive_.erase(slot);
 }
 
 void Replay::Index(int64_t slot) {
-  slots_of_state_[slots_[slot].state].push_back(slot);
-  if (slots_[slot].reward > 0) positive_.insert(slot);
+  slots_of_state_[slots_[slot].state].slots.push_back(slot);
+  if (slots_[slot].reward >= 1) positive_.insert(slot);
 }
 
 void Replay::Insert(const Transition& t) {
@@ -118,8 +133,8 @@ void Replay::Insert(const Transition& t) {
 
 std::optional<std::pair<std::vector<int64_t>, int64_t>> Replay::GoalTrajectory(int64_t goal) const {
   const auto it = slots_of_state_.find(goal);
-  if (it == slots_of_state_.end() || it->second.empty()) return std::nullopt;
-  const int64_t slot = *std::min_element(it->second.begin(), it->second.end());
+  if (it == slots_of_state_.end()) return std::nullopt;
+  const int64_t slot = it->second.Lowest();
   std::vector<int64_t> before;
   const int32_t t = stamps_[slot];
   before.reserve(t);
@@ -191,8 +206,10 @@ absl::Status Replay::Read(std::istream& in) {
       return Short("the replay");
     }
     t.done = done != 0;
-    fresh.Index(i);
   }
+  // Indexed oldest first, as they were inserted.
+  const int64_t oldest = size == capacity ? next : 0;
+  for (int64_t i = 0; i < size; ++i) fresh.Index((oldest + i) % capacity);
   fresh.size_ = size;
   fresh.next_ = next;
   fresh.step_ = step;

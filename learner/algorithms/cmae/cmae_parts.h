@@ -66,8 +66,8 @@ struct Transition {
 // CMAE's Storage: a ring of `capacity` transitions, each with its step
 // within its episode (time stamp 0 at an episode's first step, the count
 // restarting after a done one). Finds, as the code's np.where does, the
-// lowest slot holding a state or a positive reward, kept in indexes so
-// that a lookup costs no scan of the ring.
+// lowest slot holding a state or a reward of at least 1 (the code's test
+// of success), kept in indexes so that a lookup costs no scan of the ring.
 class Replay {
  public:
   explicit Replay(int64_t capacity);
@@ -84,9 +84,9 @@ class Replay {
   // that slot. nullopt if no slot holds `goal`.
   std::optional<std::pair<std::vector<int64_t>, int64_t>> GoalTrajectory(int64_t goal) const;
   // get_prioritized_batch(batch): the slots of the episode into the lowest
-  // slot with a positive reward, that slot first and back to the episode's
+  // slot with a reward >= 1, that slot first and back to the episode's
   // start, then uniform draws (with replacement) up to `batch` slots. Empty
-  // while no slot has a positive reward.
+  // while no slot has one.
   std::vector<int64_t> PrioritizedBatch(int batch, Rng& rng) const;
   // sample_states: min(count, size) distinct slots, uniformly.
   std::vector<int64_t> SampleDistinct(int count, Rng& rng) const;
@@ -98,14 +98,23 @@ class Replay {
   void Unindex(int64_t slot);
   void Index(int64_t slot);
 
+  // A state's slots, oldest first: the ring overwrites its oldest slot, so
+  // the front leaves first; slot numbers rise along it but for one wrap
+  // round the ring, so the lowest is found by bisection.
+  struct Slots {
+    std::vector<int64_t> slots;
+    size_t head = 0;  // slots[head..] are live.
+    int64_t Lowest() const;
+  };
+
   int64_t capacity_;
   std::vector<Transition> slots_;
   std::vector<int32_t> stamps_;
   int64_t size_ = 0;
   int64_t next_ = 0;   // Slot the next insert writes.
   int32_t step_ = 0;   // Time stamp of the next insert.
-  absl::flat_hash_map<int64_t, std::vector<int64_t>> slots_of_state_;
-  std::set<int64_t> positive_;  // Slots with a positive reward.
+  absl::flat_hash_map<int64_t, Slots> slots_of_state_;
+  std::set<int64_t> positive_;  // Slots with a reward >= 1.
 };
 
 // The restricted-space counts of CMAE's meta learner with --tree_subspace

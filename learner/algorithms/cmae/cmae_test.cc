@@ -16,6 +16,7 @@
 #include "learner/learner.h"
 #include "protocol/policy_mlp.h"
 #include "protocol/policy_table.h"
+#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {
@@ -253,6 +254,7 @@ void Train(Cmae& cmae, const env::Scenario& scenario, env::VecEnv& envs, int epi
     int length = 0;
     do {
       u.mutable_states()->Add(envs.states(), envs.states() + K);
+      u.add_episode_ids(envs.episode_id(0));
       table->Probabilities(envs.states(), 1, false, probs.data());
       for (int a = 0; a < n; ++a) actions[a] = SampleCategorical(&probs[a * A], A, rng.UniformDouble());
       envs.Step(actions.data(), rewards.data(), &terminated, &truncated, reached.data());
@@ -383,6 +385,34 @@ TEST(CmaeTest, ExploitationWeightRisesWithEpisodesAndSaveLoadGoesOnExactly) {
   std::filesystem::resize_file(path, 100);
   EXPECT_FALSE((*b)->Load(path).ok());
   EXPECT_EQ((*b)->episodes(), 12);
+}
+
+TEST(CmaeTest, ABrokenEpisodeLosesThePartBeforeTheBreak) {
+  const auto scenario = SmallPass(20);
+  auto cmae = Cmae::Create(scenario.get(), SmallConfig(100));
+  ASSERT_TRUE(cmae.ok());
+  // 10 steps of an episode, then the actor restarts (a new incarnation)
+  // and plays a whole 20-step episode: only that one is counted and stored.
+  FeaturisedUnroll first, second;
+  first.unroll = testing::RandomUnroll(*scenario, 10, 1, 1);
+  first.unroll.set_incarnation(1);
+  second.unroll = testing::RandomUnroll(*scenario, 20, 1, 2);
+  second.unroll.set_incarnation(2);
+  ASSERT_TRUE((*cmae)->Add(first).ok());
+  EXPECT_EQ((*cmae)->replay().size(), 0);
+  ASSERT_TRUE((*cmae)->Add(second).ok());
+  EXPECT_EQ((*cmae)->episodes(), 1);
+  EXPECT_EQ((*cmae)->replay().size(), 20);
+  // A single variable's counter holds those 20 steps and no more.
+  int64_t counted = 0;
+  std::vector<int32_t> vars((*cmae)->space().num_vars());
+  for (int64_t slot = 0; slot < 20; ++slot) {
+    (*cmae)->space().Decode((*cmae)->replay().at(slot).state, vars.data());
+    counted = std::max<int64_t>(counted, (*cmae)->subspaces().CountOf(0b1, vars.data(),
+                                                                      (*cmae)->replay().at(slot).joint_action));
+  }
+  EXPECT_GE(counted, 1);
+  EXPECT_LE(counted, 20);
 }
 
 TEST(CmaeTest, RefusesWhatItCannotHold) {
