@@ -62,7 +62,6 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
              std::shared_ptr<grpc::Channel> learner, std::shared_ptr<grpc::Channel> reward_server)
     : scenario_(scenario),
       config_(config),
-      featurizer_(*scenario),
       learner_(v1::LearnerService::NewStub(learner)),
       reward_(v1::RewardService::NewStub(reward_server)),
       envs_(scenario, config.num_envs, config.seed),
@@ -71,7 +70,7 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
       incarnation_(config.incarnation != 0 ? config.incarnation : RandomIncarnation()),
       counters_(RegisterMetrics(&registry_)),
       sync_unrolls_(std::max(config.sync_unrolls, 0)),
-      policies_(learner_.get(), *scenario, featurizer_.obs_dim(),
+      policies_(learner_.get(), *scenario,
                 PolicyClientOptions{config.actor_id, config.rpc_timeout, config.tls}, &stop_,
                 [this](const v1::Policy& policy) { return Admit(policy); },
                 [this] { WriteStatus("waiting_policy", /*force=*/false); }),
@@ -82,7 +81,6 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
   if (!config.trace_file.empty()) trace_.emplace(config.trace_file, config.trace_period, config.actor_id);
   const int rows = std::max(config.num_envs, config.eval_envs) * scenario->num_agents();
   const int envs = std::max(config.num_envs, config.eval_envs);
-  obs_.resize(static_cast<size_t>(rows) * featurizer_.obs_dim());
   probs_.resize(static_cast<size_t>(rows) * scenario->num_actions());
   actions_.resize(rows);
   log_probs_.resize(rows);
@@ -161,18 +159,8 @@ absl::Status Actor::Admit(const v1::Policy& policy) {
 
 void Actor::SampleActions(const int32_t* states, int num_envs, bool evaluation, int32_t* actions,
                           float* log_probs, float* probs) {
-  const int n = scenario_->num_agents(), k = scenario_->state_size(), a_count = scenario_->num_actions();
-  if (const PolicyTable* table = policies_.table(); table != nullptr) {
-    table->Probabilities(states, num_envs, evaluation, probs);
-  } else {
-    const int obs_dim = featurizer_.obs_dim();
-    for (int e = 0; e < num_envs; ++e) {
-      for (int a = 0; a < n; ++a) {
-        featurizer_.Observe(states + e * k, a, &obs_[static_cast<size_t>(e * n + a) * obs_dim]);
-      }
-    }
-    policies_.mlp()->Probabilities(obs_.data(), num_envs * n, probs);
-  }
+  const int n = scenario_->num_agents(), a_count = scenario_->num_actions();
+  policies_.policy()->Probabilities(states, num_envs, evaluation, probs);
   for (int row = 0; row < num_envs * n; ++row) {
     const float* p = probs + row * a_count;
     const int u = SampleCategorical(p, a_count, rng_.UniformDouble());
@@ -337,7 +325,7 @@ absl::Status Actor::Run() {
       case Phase::kActing:
         // No policy: the first, or the learner went back and had none to give.
         // Waiting for one counts as choosing a policy.
-        if (!policies_.held()) {
+        if (policies_.policy() == nullptr) {
           const bool got = policies_.Refresh(/*wait=*/true);
           counters_.phase_seconds[static_cast<int>(Phase::kChoosingPolicy)]->Increment(Lap(lap));
           if (!got) {

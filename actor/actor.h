@@ -18,7 +18,6 @@
 #include "actor/unroll_sender.h"
 #include "base/rng.h"
 #include "env/env.h"
-#include "env/featurizer.h"
 #include "env/vec_env.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "imca/v1/reward_service.grpc.pb.h"
@@ -180,7 +179,6 @@ class Actor {
 
   const env::Scenario* scenario_;
   const ActorConfig config_;
-  const env::Featurizer featurizer_;
   std::unique_ptr<v1::LearnerService::Stub> learner_;
   std::unique_ptr<v1::RewardService::Stub> reward_;
   StopSignal stop_;
@@ -219,7 +217,6 @@ class Actor {
   std::optional<CreditTrace> trace_;
 
   // Scratch buffers, sized once.
-  std::vector<float> obs_;
   std::vector<float> probs_;
   std::vector<int32_t> actions_;
   std::vector<float> log_probs_;

@@ -10,24 +10,23 @@
 
 namespace imca::actor {
 
-PolicyClient::PolicyClient(v1::LearnerService::StubInterface* learner, const env::Scenario& scenario, int obs_dim,
+PolicyClient::PolicyClient(v1::LearnerService::StubInterface* learner, const env::Scenario& scenario,
                            const PolicyClientOptions& options, StopSignal* stop, Admit admit, OnWait on_wait)
     : learner_(learner),
       scenario_(scenario),
-      obs_dim_(obs_dim),
       options_(options),
       stop_(stop),
       admit_(std::move(admit)),
       on_wait_(std::move(on_wait)) {}
 
 bool PolicyClient::Refresh(bool wait) {
-  return Fetch(held() ? version() + 1 : 0, /*retry=*/wait, /*until_newer=*/false);
+  return Fetch(policy_.has_value() ? policy_->version() + 1 : 0, /*retry=*/wait, /*until_newer=*/false);
 }
 
 bool PolicyClient::Await(int64_t min_version) { return Fetch(min_version, /*retry=*/true, /*until_newer=*/true); }
 
 bool PolicyClient::Restart() {
-  Drop();
+  policy_.reset();
   return Refresh(/*wait=*/true);
 }
 
@@ -70,35 +69,26 @@ bool PolicyClient::Fetch(int64_t min_version, bool retry, bool until_newer) {
     backoff.Reset();
     // A policy, not a "not modified" answer (a bare version).
     if (policy.tensors_size() > 0 || policy.has_tabular()) return Adopt(policy);
-    if (held() && (policy.version() < version() || policy.learner_incarnation() != learner_incarnation_)) {
+    if (policy_.has_value() &&
+        (policy.version() < policy_->version() || policy.learner_incarnation() != learner_incarnation_)) {
       // Not modified, but the learner restarted from a checkpoint: older
       // than ours, or ours, without the unrolls of it the old one took.
       // Take whatever it has, and deliver that version's share anew.
-      Drop();
+      policy_.reset();
       min_version = 0;
       continue;
     }
-    if (!until_newer) return held();  // Nothing newer: keep acting with ours.
+    if (!until_newer) return policy_.has_value();  // Nothing newer: keep acting with ours.
     if (LearnerDone()) return false;
   }
   return false;
 }
 
 bool PolicyClient::Adopt(const v1::Policy& policy) {
-  std::optional<PolicyMlp> mlp;
-  std::optional<PolicyTable> table;
-  absl::Status fits;
-  if (policy.architecture() == v1::Policy::TABULAR_Q) {
-    absl::StatusOr<PolicyTable> read = PolicyTable::FromProto(policy, scenario_);
-    fits = read.status();
-    if (read.ok()) table = *std::move(read);
-  } else {
-    absl::StatusOr<PolicyMlp> read = PolicyMlp::FromProto(policy);
-    fits = read.ok() ? read->Fits(obs_dim_, scenario_.num_actions(), scenario_.num_agents()) : read.status();
-    if (fits.ok()) mlp = *std::move(read);
-  }
-  if (!fits.ok()) {
-    error_ = absl::InternalError(absl::StrCat("learner's policy does not fit ", scenario_.name(), ": ", fits.message()));
+  absl::StatusOr<ActingPolicy> acting = ActingPolicy::FromProto(policy, scenario_);
+  if (!acting.ok()) {
+    error_ = absl::InternalError(
+        absl::StrCat("learner's policy does not fit ", scenario_.name(), ": ", acting.status().message()));
     return false;
   }
   if (admit_) {
@@ -107,8 +97,7 @@ bool PolicyClient::Adopt(const v1::Policy& policy) {
       return false;
     }
   }
-  mlp_ = std::move(mlp);
-  table_ = std::move(table);
+  policy_.emplace(*std::move(acting));
   learner_incarnation_ = policy.learner_incarnation();
   return true;
 }

@@ -11,8 +11,7 @@
 #include "actor/stop_signal.h"
 #include "env/env.h"
 #include "imca/v1/learner_service.grpc.pb.h"
-#include "protocol/policy_mlp.h"
-#include "protocol/policy_table.h"
+#include "protocol/acting_policy.h"
 
 namespace imca::actor {
 
@@ -40,7 +39,7 @@ class PolicyClient {
   using OnWait = std::function<void()>;
 
   // `learner` and `stop` must outlive the client.
-  PolicyClient(v1::LearnerService::StubInterface* learner, const env::Scenario& scenario, int obs_dim,
+  PolicyClient(v1::LearnerService::StubInterface* learner, const env::Scenario& scenario,
                const PolicyClientOptions& options, StopSignal* stop, Admit admit, OnWait on_wait);
 
   // Takes a newer policy than the one held if the learner has one (any
@@ -59,15 +58,11 @@ class PolicyClient {
   // any failure).
   bool LearnerDone();
 
-  // Whether a policy is held: none before the first one, or after
-  // Restart() found none.
-  bool held() const { return mlp_.has_value() || table_.has_value(); }
-  // The policy acted with, a network or (CMAE's) Q-tables: one of the two
-  // is non-null while held(). Not const: evaluating a network uses its
-  // scratch buffers.
-  PolicyMlp* mlp() { return mlp_.has_value() ? &*mlp_ : nullptr; }
-  const PolicyTable* table() const { return table_.has_value() ? &*table_ : nullptr; }
-  int64_t version() const { return mlp_.has_value() ? mlp_->version() : table_.has_value() ? table_->version() : -1; }
+  // The policy acted with (a network or CMAE's Q-tables); nullptr before
+  // the first one, or after Restart() found none.
+  // Not const: evaluating a network uses its scratch buffers.
+  ActingPolicy* policy() { return policy_.has_value() ? &*policy_ : nullptr; }
+  int64_t version() const { return policy_.has_value() ? policy_->version() : -1; }
   // Why no policy can be had: INTERNAL (the learner's policy does not fit the
   // scenario), the Admit error, or the refusal of a call (credentials). OK
   // otherwise.
@@ -83,19 +78,11 @@ class PolicyClient {
 
   v1::LearnerService::StubInterface* const learner_;
   const env::Scenario& scenario_;
-  const int obs_dim_;
   const PolicyClientOptions options_;
   StopSignal* const stop_;
   const Admit admit_;
   const OnWait on_wait_;
-  // Drops the policy held.
-  void Drop() {
-    mlp_.reset();
-    table_.reset();
-  }
-
-  std::optional<PolicyMlp> mlp_;
-  std::optional<PolicyTable> table_;
+  std::optional<ActingPolicy> policy_;
   uint64_t learner_incarnation_ = 0;  // Of the learner that served policy_.
   absl::Status error_;
   std::chrono::steady_clock::time_point failure_logged_{};

@@ -86,7 +86,7 @@ class PolicyClientTest : public ::testing::Test {
   std::unique_ptr<PolicyClient> Client(PolicyClient::Admit admit = nullptr) {
     PolicyClientOptions options;
     options.rpc_timeout = std::chrono::milliseconds(2000);
-    return std::make_unique<PolicyClient>(stub_.get(), *scenario_, env::Featurizer(*scenario_).obs_dim(), options,
+    return std::make_unique<PolicyClient>(stub_.get(), *scenario_, options,
                                           &stop_, std::move(admit), nullptr);
   }
 
@@ -101,7 +101,7 @@ class PolicyClientTest : public ::testing::Test {
 TEST_F(PolicyClientTest, TakesTheNewestAndKeepsItWhenNothingIsNewer) {
   service_.Set(Version(0), 1);
   auto client = Client();
-  EXPECT_EQ(client->held(), false);
+  EXPECT_EQ(client->policy(), nullptr);
   ASSERT_TRUE(client->Refresh(/*wait=*/true));
   EXPECT_EQ(client->version(), 0);
   ASSERT_TRUE(client->Refresh(/*wait=*/false));  // Not modified.
@@ -147,13 +147,13 @@ TEST_F(PolicyClientTest, RefusesAPolicyThatDoesNotFitOrIsNotAdmitted) {
   EXPECT_FALSE(client->Refresh(/*wait=*/true));
   EXPECT_EQ(client->error().code(), absl::StatusCode::kInternal);
   EXPECT_NE(client->error().message().find("does not fit coop_nav"), std::string::npos) << client->error();
-  EXPECT_EQ(client->held(), false);
+  EXPECT_EQ(client->policy(), nullptr);
 
   service_.Set(Version(0), 1);
   auto picky = Client([](const v1::Policy&) { return absl::FailedPreconditionError("not a whole share"); });
   EXPECT_FALSE(picky->Refresh(/*wait=*/true));
   EXPECT_EQ(picky->error().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_EQ(picky->held(), false);
+  EXPECT_EQ(picky->policy(), nullptr);
 }
 
 TEST_F(PolicyClientTest, StopEndsAWaitForAVersionThatNeverComes) {

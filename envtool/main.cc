@@ -21,12 +21,11 @@
 #include "absl/strings/str_join.h"
 #include "base/rng.h"
 #include "env/env.h"
-#include "env/featurizer.h"
 #include "env/scenario_flags.h"
 #include "envtool/episode_io.h"
 #include "envtool/render.h"
+#include "protocol/acting_policy.h"
 #include "protocol/policy_mlp.h"
-#include "protocol/policy_table.h"
 
 ABSL_FLAG(uint64_t, seed, 1, "seed of Reset and of the scenario's random draws");
 ABSL_FLAG(std::string, state, "", "start from this state \"z,c1,...,t\" instead of a Reset");
@@ -170,35 +169,22 @@ void Script(Episode& episode, const std::vector<std::vector<int32_t>>& steps) {
   }
 }
 
-// A policy.pb as actors act with it: a network, or CMAE's Q-tables.
-struct LoadedPolicy {
-  std::optional<PolicyMlp> mlp;
-  std::optional<PolicyTable> table;
-};
-
-// The action probabilities of `policy` in a state, [n][A]: a network's input
-// is the featurizer's observation of each agent, as an actor's; Q-tables
-// act as in an actor's evaluation environments (on the exploitation tables).
+// The action probabilities of `policy` in a state, [n][A], as an actor's
+// evaluation environments act (the same for a network; CMAE's Q-tables act
+// on their exploitation side).
 class PolicyProbs {
  public:
-  PolicyProbs(const env::Scenario& scenario, LoadedPolicy& policy)
-      : featurizer_(scenario),
-        policy_(policy),
+  PolicyProbs(const env::Scenario& scenario, ActingPolicy& policy)
+      : policy_(policy),
         n_(scenario.num_agents()),
         state_size_(scenario.state_size()),
-        obs_(static_cast<size_t>(n_) * featurizer_.obs_dim()),
         probs_(static_cast<size_t>(n_) * scenario.num_actions()) {}
 
   // The probabilities in `state` (computed once per state: a rollout's JSON
   // line and its next actions ask for the same).
   const std::vector<float>& Of(const int32_t* state) {
     if (!last_.empty() && std::equal(last_.begin(), last_.end(), state)) return probs_;
-    if (policy_.table) {
-      policy_.table->Probabilities(state, 1, /*evaluation=*/true, probs_.data());
-    } else {
-      for (int a = 0; a < n_; ++a) featurizer_.Observe(state, a, &obs_[a * featurizer_.obs_dim()]);
-      policy_.mlp->Probabilities(obs_.data(), n_, probs_.data());
-    }
+    policy_.Probabilities(state, 1, /*evaluation=*/true, probs_.data());
     last_.assign(state, state + state_size_);
     return probs_;
   }
@@ -219,11 +205,9 @@ class PolicyProbs {
   }
 
  private:
-  const env::Featurizer featurizer_;
-  LoadedPolicy& policy_;
+  ActingPolicy& policy_;
   const int n_;
   const int state_size_;
-  std::vector<float> obs_;
   std::vector<float> probs_;
   std::vector<int32_t> last_;  // The state probs_ are of (empty: none yet).
 };
@@ -241,32 +225,18 @@ void Rollout(Episode& episode, const env::Scenario& scenario, PolicyProbs& polic
   }
 }
 
-absl::StatusOr<LoadedPolicy> LoadPolicy(const std::string& path, const env::Scenario& scenario) {
+absl::StatusOr<ActingPolicy> LoadPolicy(const std::string& path, const env::Scenario& scenario) {
   std::ifstream in(path, std::ios::binary);
   v1::Policy proto;
   if (!in || !proto.ParseFromIstream(&in)) {
     return absl::InvalidArgumentError(absl::StrCat("cannot read a policy from '", path, "'"));
   }
-  LoadedPolicy loaded;
-  if (proto.architecture() == v1::Policy::TABULAR_Q) {
-    absl::StatusOr<PolicyTable> table = PolicyTable::FromProto(proto, scenario);
-    if (!table.ok()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("'", path, "' was trained on another scenario or map: ", table.status().message()));
-    }
-    loaded.table = *std::move(table);
-    return loaded;
+  absl::StatusOr<ActingPolicy> policy = ActingPolicy::FromProto(proto, scenario);
+  if (!policy.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("'", path, "' does not fit ", scenario.name(),
+                                                   " (another scenario or map?): ", policy.status().message()));
   }
-  absl::StatusOr<PolicyMlp> policy = PolicyMlp::FromProto(proto);
-  if (!policy.ok()) return policy.status();
-  if (const absl::Status fits =
-          policy->Fits(env::Featurizer(scenario).obs_dim(), scenario.num_actions(), scenario.num_agents());
-      !fits.ok()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'", path, "' was trained on another scenario or map: ", fits.message()));
-  }
-  loaded.mlp = *std::move(policy);
-  return loaded;
+  return policy;
 }
 
 int Main(const std::vector<char*>& args) {
@@ -309,13 +279,13 @@ int Main(const std::vector<char*>& args) {
     if (!parsed.ok()) return Fail(kUsageError, parsed.status().message());
     steps = *std::move(parsed);
   }
-  std::optional<LoadedPolicy> policy;
+  std::optional<ActingPolicy> policy;
   if (command == "rollout") {
     const std::string path = absl::GetFlag(FLAGS_policy);
     if (path.empty()) return Fail(kUsageError, "--policy: the policy.pb file is required");
     auto loaded = LoadPolicy(path, scenario);
     if (!loaded.ok()) return Fail(kUsageError, absl::StrCat("--policy: ", loaded.status().message()));
-    policy = *std::move(loaded);
+    policy.emplace(*std::move(loaded));
   }
   const int delay_cs = absl::GetFlag(FLAGS_gif_delay_cs);
   if (delay_cs < 1 || delay_cs > 65535) return Fail(kUsageError, "--gif_delay_cs: not in [1, 65535]");

@@ -64,7 +64,6 @@ absl::StatusOr<PolicyTable> PolicyTable::FromProto(const v1::Policy& policy, con
 
 void PolicyTable::Probabilities(const int32_t* states, int num_envs, bool evaluation, float* probs) const {
   const int n = space_.num_agents(), A = space_.num_actions();
-  const double w = weight_;
   for (int e = 0; e < num_envs; ++e) {
     const int32_t* state = states + static_cast<size_t>(e) * state_size_;
     const int64_t index = space_.Index(state);
@@ -76,7 +75,7 @@ void PolicyTable::Probabilities(const int32_t* states, int num_envs, bool evalua
       for (int u = 0; u < A; ++u) {
         const double qe = explore == explore_rows_.end() ? 0 : explore_[(explore->second * n + a) * A + u];
         const double qx = exploit == exploit_rows_.end() ? 0 : exploit_[(exploit->second * n + a) * A + u];
-        mixed[u] = evaluation ? qx : (1 - w) * qe + w * qx;
+        mixed[u] = evaluation ? qx : (1 - weight_) * qe + weight_ * qx;
         if (u == 0 || mixed[u] > best) best = mixed[u];
       }
       int ties = 0;

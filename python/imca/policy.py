@@ -8,7 +8,9 @@ Every architecture the learner exports (proto/imca/v1/learner_service.proto's
 Policy.Architecture, named here in lower case): "mlp_tanh" and
 "mlp_tanh_layernorm" (MAPPO, shared), "mlp_relu" (MADDPG, shared or one
 network per agent). The forward pass is the C++ evaluator's
-(protocol/policy_mlp.cc) in float32: probabilities agree to 1e-6.
+(protocol/policy_mlp.cc) in float32: probabilities agree to 1e-6. CMAE's
+"tabular_q" policies (Q-tables over joint states, not observations) are
+refused: actors and `imca_env rollout` act with them (protocol/policy_table.h).
 """
 import os
 
@@ -22,10 +24,16 @@ def _v1():
     return learner_service_pb2
 
 
+# Architectures that are no network of observations.
+NOT_NETWORKS = ("tabular_q",)
+
+
 def architectures():
-    """The architectures a policy can have, by name ("mlp_tanh", ...): the
-    proto's enum values but the unspecified one, in lower case."""
-    return tuple(name.lower() for name, number in _v1().Policy.Architecture.items() if number != 0)
+    """The architectures load_policy evaluates, by name ("mlp_tanh", ...):
+    the proto's enum values but the unspecified one and NOT_NETWORKS, in
+    lower case."""
+    return tuple(name.lower() for name, number in _v1().Policy.Architecture.items()
+                 if number != 0 and name.lower() not in NOT_NETWORKS)
 
 
 class _Net:
@@ -101,6 +109,9 @@ class Policy:
     def __init__(self, proto):
         enum = _v1().Policy.Architecture
         architecture = enum.Name(proto.architecture).lower() if proto.architecture in enum.values() else None
+        if architecture in NOT_NETWORKS:
+            raise ValueError(f"policy.architecture {architecture}: CMAE's Q-tables over joint states, not a network "
+                             "of observations; actors and `imca_env rollout` act with them")
         if architecture not in architectures():
             raise ValueError(f"policy.architecture {proto.architecture} ({architecture or 'unknown'}) is not one of "
                              f"{', '.join(architectures())}")

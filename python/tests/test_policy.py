@@ -117,6 +117,9 @@ def test_bad_policy_files(tmp_path):
     with pytest.raises(ValueError, match=r"policy.architecture 0 \(architecture_unspecified\) is not one of "
                                          "mlp_tanh, mlp_tanh_layernorm, mlp_relu"):
         imca.policy_from_bytes(proto.SerializeToString())
+    proto.architecture = 4  # TABULAR_Q: CMAE's tables, acted with by actors and imca_env.
+    with pytest.raises(ValueError, match="policy.architecture tabular_q: CMAE's Q-tables"):
+        imca.policy_from_bytes(proto.SerializeToString())
     proto = synthetic("mlp_tanh", 10, 5, 0, seed=1)
     del proto.tensors[1]
     with pytest.raises(ValueError, match="policy: tensor 'policy.0.bias' is missing"):

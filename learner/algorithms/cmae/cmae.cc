@@ -40,7 +40,6 @@ struct Cmae::Impl {
   Impl(const env::Scenario* scenario, const LearnerConfig& config, env::JointStateSpace space)
       : scenario(scenario),
         config(config),
-        c(config.cmae),
         space(std::move(space)),
         n(scenario->num_agents()),
         num_actions(scenario->num_actions()),
@@ -64,7 +63,7 @@ struct Cmae::Impl {
 
   const env::Scenario* scenario;
   const LearnerConfig config;
-  const CmaeConfig c;
+  const CmaeConfig& c = config.cmae;
   const env::JointStateSpace space;
   const int n;
   const int num_actions;
@@ -79,8 +78,8 @@ struct Cmae::Impl {
   std::map<std::pair<std::string, int>, OpenEpisode> open;  // By (actor id, env).
 
   // This iteration's.
-  int64_t it_goals = 0, it_goals_reached = 0, it_updates = 0;
-  double it_seconds = 0;
+  int64_t it_goals = 0, it_goals_reached = 0, it_updates = 0, it_rows = 0;
+  double it_seconds = 0, it_entropy = 0;
 };
 
 void Cmae::Impl::AddStep(const std::string& actor, uint64_t incarnation, int env, int64_t episode_id,
@@ -191,13 +190,7 @@ void Cmae::Impl::Write(std::ostream& out) const {
     WritePod(out, episode.incarnation);
     WritePod(out, episode.episode_id);
     WritePod(out, static_cast<int64_t>(episode.steps.size()));
-    for (const Transition& t : episode.steps) {
-      WritePod(out, t.state);
-      WritePod(out, t.next_state);
-      WritePod(out, t.joint_action);
-      WritePod(out, t.reward);
-      WritePod(out, static_cast<uint8_t>(t.done));
-    }
+    for (const Transition& t : episode.steps) t.Write(out);
   }
 }
 
@@ -253,12 +246,7 @@ absl::Status Cmae::Impl::Read(std::istream& in) {
     }
     for (int64_t s = 0; s < steps; ++s) {
       Transition t;
-      uint8_t done = 0;
-      if (!ReadPod(in, &t.state) || !ReadPod(in, &t.next_state) || !ReadPod(in, &t.joint_action) ||
-          !ReadPod(in, &t.reward) || !ReadPod(in, &done)) {
-        return absl::DataLossError("checkpoint: open episodes cut short");
-      }
-      t.done = done != 0;
+      if (!t.Read(in)) return absl::DataLossError("checkpoint: open episodes cut short");
       episode.steps.push_back(t);
     }
     open.emplace(std::make_pair(std::move(actor), env), std::move(episode));
@@ -355,6 +343,16 @@ absl::Status Cmae::Add(const FeaturisedUnroll& queued) {
       m.AddStep(u.actor_id(), u.incarnation(), e, u.episode_ids(static_cast<int>(row)), step);
     }
   }
+  // The acting policy's entropy, from the probabilities the actor acted
+  // with (greedy, ties shared: ln of the tied actions).
+  const int A = u.num_actions();
+  for (int i = 0; i + A <= u.action_probs_size(); i += A) {
+    for (int j = 0; j < A; ++j) {
+      const float p = u.action_probs(i + j);
+      if (p > 0) m.it_entropy -= p * std::log(p);
+    }
+    ++m.it_rows;
+  }
   m.it_seconds += Lap(start);
   return absl::OkStatus();
 }
@@ -374,9 +372,9 @@ absl::StatusOr<IterationStats> Cmae::Train() {
   };
   stats.updates = m.it_updates;
   stats.seconds_copy = m.it_seconds;
-  // Entropy of the acting policy is not a quantity of a greedy one: 0.
-  m.it_goals = m.it_goals_reached = m.it_updates = 0;
-  m.it_seconds = 0;
+  stats.entropy = m.it_rows > 0 ? m.it_entropy / m.it_rows : 0;
+  m.it_goals = m.it_goals_reached = m.it_updates = m.it_rows = 0;
+  m.it_seconds = m.it_entropy = 0;
   return stats;
 }
 

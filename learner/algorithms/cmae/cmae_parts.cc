@@ -85,6 +85,24 @@ absl::Status QTable::Read(std::istream& in) {
 
 // ---- Replay ----
 
+void Transition::Write(std::ostream& out) const {
+  WritePod(out, state);
+  WritePod(out, next_state);
+  WritePod(out, joint_action);
+  WritePod(out, reward);
+  WritePod(out, static_cast<uint8_t>(done));
+}
+
+bool Transition::Read(std::istream& in) {
+  uint8_t flag = 0;
+  if (!ReadPod(in, &state) || !ReadPod(in, &next_state) || !ReadPod(in, &joint_action) || !ReadPod(in, &reward) ||
+      !ReadPod(in, &flag)) {
+    return false;
+  }
+  done = flag != 0;
+  return true;
+}
+
 Replay::Replay(int64_t capacity) : capacity_(capacity), slots_(capacity), stamps_(capacity, 0) {}
 
 int64_t Replay::Slots::Lowest() const {
@@ -176,12 +194,7 @@ void Replay::Write(std::ostream& out) const {
   WritePod(out, next_);
   WritePod(out, step_);
   for (int64_t i = 0; i < size_; ++i) {
-    const Transition& t = slots_[i];
-    WritePod(out, t.state);
-    WritePod(out, t.next_state);
-    WritePod(out, t.joint_action);
-    WritePod(out, t.reward);
-    WritePod(out, static_cast<uint8_t>(t.done));
+    slots_[i].Write(out);
     WritePod(out, stamps_[i]);
   }
 }
@@ -199,13 +212,7 @@ absl::Status Replay::Read(std::istream& in) {
   if (size < 0 || size > capacity || next < 0 || next >= capacity) return absl::DataLossError("checkpoint: replay sizes");
   Replay fresh(capacity);
   for (int64_t i = 0; i < size; ++i) {
-    Transition& t = fresh.slots_[i];
-    uint8_t done = 0;
-    if (!ReadPod(in, &t.state) || !ReadPod(in, &t.next_state) || !ReadPod(in, &t.joint_action) ||
-        !ReadPod(in, &t.reward) || !ReadPod(in, &done) || !ReadPod(in, &fresh.stamps_[i])) {
-      return Short("the replay");
-    }
-    t.done = done != 0;
+    if (!fresh.slots_[i].Read(in) || !ReadPod(in, &fresh.stamps_[i])) return Short("the replay");
   }
   // Indexed oldest first, as they were inserted.
   const int64_t oldest = size == capacity ? next : 0;

@@ -61,6 +61,10 @@ struct Transition {
   int64_t joint_action = 0;
   double reward = 0;  // The team's extrinsic reward.
   bool done = false;
+
+  // For checkpoints (Read: false on a short stream).
+  void Write(std::ostream& out) const;
+  bool Read(std::istream& in);
 };
 
 // CMAE's Storage: a ring of `capacity` transitions, each with its step

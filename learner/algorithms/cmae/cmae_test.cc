@@ -234,13 +234,41 @@ TEST(CmaePolicyTableTest, RefusesWhatDoesNotFit) {
 
 // ---- The whole algorithm ----
 
-// Acts `episodes` episodes of one env with the algorithm's exported policy,
-// adding each as one unroll of the whole episode (CMAE's loop).
-void Train(Cmae& cmae, const env::Scenario& scenario, env::VecEnv& envs, int episodes, Rng& rng) {
+// Plays one episode of env 0 with `table` (on its exploitation side with
+// `evaluation`), recording it into `u` if given; returns its success.
+bool PlayEpisode(const PolicyTable& table, env::VecEnv& envs, bool evaluation, Rng& rng, v1::Unroll* u) {
+  const env::Scenario& scenario = envs.scenario();
   const int n = scenario.num_agents(), K = scenario.state_size(), A = scenario.num_actions();
   std::vector<int32_t> actions(n), reached(K);
   std::vector<float> rewards(n), probs(n * A);
   bool terminated = false, truncated = false;
+  do {
+    if (u != nullptr) {
+      u->mutable_states()->Add(envs.states(), envs.states() + K);
+      u->add_episode_ids(envs.episode_id(0));
+    }
+    table.Probabilities(envs.states(), 1, evaluation, probs.data());
+    for (int a = 0; a < n; ++a) actions[a] = SampleCategorical(&probs[a * A], A, rng.UniformDouble());
+    envs.Step(actions.data(), rewards.data(), &terminated, &truncated, reached.data());
+    if (u != nullptr) {
+      u->mutable_actions()->Add(actions.begin(), actions.end());
+      u->mutable_action_probs()->Add(probs.begin(), probs.end());
+      u->mutable_rewards()->Add(rewards.begin(), rewards.end());
+      u->mutable_next_states()->Add(reached.begin(), reached.end());
+      u->add_terminated(terminated);
+      u->add_truncated(truncated);
+      u->set_length(u->length() + 1);
+    }
+  } while (!terminated && !truncated);
+  if (u != nullptr) u->mutable_states()->Add(envs.states(), envs.states() + K);
+  std::vector<env::EpisodeEnd> ends;
+  envs.TakeFinished(&ends);
+  return !ends.empty() && ends.back().success;
+}
+
+// Acts `episodes` episodes of one env with the algorithm's exported policy,
+// adding each as one unroll of the whole episode (CMAE's loop).
+void Train(Cmae& cmae, const env::Scenario& scenario, env::VecEnv& envs, int episodes, Rng& rng) {
   for (int episode = 0; episode < episodes; ++episode) {
     const auto table = PolicyTable::FromProto(cmae.ExportPolicy(episode), scenario);
     ASSERT_TRUE(table.ok()) << table.status();
@@ -249,24 +277,10 @@ void Train(Cmae& cmae, const env::Scenario& scenario, env::VecEnv& envs, int epi
     u.set_actor_id("a");
     u.set_incarnation(1);
     u.set_num_envs(1);
-    u.set_num_agents(n);
-    u.set_state_size(K);
-    int length = 0;
-    do {
-      u.mutable_states()->Add(envs.states(), envs.states() + K);
-      u.add_episode_ids(envs.episode_id(0));
-      table->Probabilities(envs.states(), 1, false, probs.data());
-      for (int a = 0; a < n; ++a) actions[a] = SampleCategorical(&probs[a * A], A, rng.UniformDouble());
-      envs.Step(actions.data(), rewards.data(), &terminated, &truncated, reached.data());
-      u.mutable_actions()->Add(actions.begin(), actions.end());
-      u.mutable_rewards()->Add(rewards.begin(), rewards.end());
-      u.mutable_next_states()->Add(reached.begin(), reached.end());
-      u.add_terminated(terminated);
-      u.add_truncated(truncated);
-      ++length;
-    } while (!terminated && !truncated);
-    u.mutable_states()->Add(envs.states(), envs.states() + K);
-    u.set_length(length);
+    u.set_num_agents(scenario.num_agents());
+    u.set_num_actions(scenario.num_actions());
+    u.set_state_size(scenario.state_size());
+    PlayEpisode(*table, envs, /*evaluation=*/false, rng, &u);
     ASSERT_TRUE(cmae.Add(f).ok());
     ASSERT_TRUE(cmae.Train().ok());
   }
@@ -277,20 +291,9 @@ double Evaluate(const Cmae& cmae, const env::Scenario& scenario, int episodes, u
   env::VecEnv envs(&scenario, 1, seed);
   Rng rng(seed);
   const auto table = PolicyTable::FromProto(cmae.ExportPolicy(0), scenario);
-  const int n = scenario.num_agents(), K = scenario.state_size(), A = scenario.num_actions();
-  std::vector<int32_t> actions(n), reached(K);
-  std::vector<float> rewards(n), probs(n * A);
-  bool terminated = false, truncated = false;
   int successes = 0;
   for (int episode = 0; episode < episodes; ++episode) {
-    do {
-      table->Probabilities(envs.states(), 1, /*evaluation=*/true, probs.data());
-      for (int a = 0; a < n; ++a) actions[a] = SampleCategorical(&probs[a * A], A, rng.UniformDouble());
-      envs.Step(actions.data(), rewards.data(), &terminated, &truncated, reached.data());
-    } while (!terminated && !truncated);
-    std::vector<env::EpisodeEnd> ends;
-    envs.TakeFinished(&ends);
-    for (const auto& end : ends) successes += end.success;
+    successes += PlayEpisode(*table, envs, /*evaluation=*/true, rng, nullptr);
   }
   return static_cast<double>(successes) / episodes;
 }
@@ -413,6 +416,31 @@ TEST(CmaeTest, ABrokenEpisodeLosesThePartBeforeTheBreak) {
   }
   EXPECT_GE(counted, 1);
   EXPECT_LE(counted, 20);
+}
+
+TEST(CmaeTest, ReportsTheEntropyTheActorsActedWith) {
+  // Untrained, every action ties: ln 4 per agent-step; after training the
+  // greedy tables break most ties.
+  const auto scenario = SmallPass(40);
+  auto cmae = Cmae::Create(scenario.get(), SmallConfig(300));
+  ASSERT_TRUE(cmae.ok());
+  env::VecEnv envs(scenario.get(), 1, 11);
+  Rng rng(11);
+  auto played = [&]() {
+    FeaturisedUnroll f;
+    f.unroll.set_incarnation(1);
+    f.unroll.set_num_envs(1);
+    f.unroll.set_num_agents(2);
+    f.unroll.set_num_actions(4);
+    f.unroll.set_state_size(scenario->state_size());
+    const auto table = PolicyTable::FromProto((*cmae)->ExportPolicy(0), *scenario);
+    PlayEpisode(*table, envs, false, rng, &f.unroll);
+    EXPECT_TRUE((*cmae)->Add(f).ok());
+    return (*cmae)->Train()->entropy;
+  };
+  EXPECT_NEAR(played(), std::log(4.0), 1e-6);
+  Train(**cmae, *scenario, envs, 300, rng);
+  EXPECT_LT(played(), 0.5 * std::log(4.0));
 }
 
 TEST(CmaeTest, RefusesWhatItCannotHold) {
