@@ -45,6 +45,21 @@ class PresetsTest(unittest.TestCase):
             self.assertIn("coop_nav-count-imca-off-s1-2000k" if preset == "paper" else "pass-count-imca-off-s1-3000k",
                           {experiment.cell_id(cell) for cell in cells})
 
+    def test_seed_by_seed_presets_hold_whole_seeds_of_every_method(self):
+        for preset, per_seed, seeds in (("frontier", 25, 10), ("multi_room3", 5, 5)):
+            cells = experiment.expand(experiment.presets()[preset]["entries"], preset)
+            experiment.check_flags(cells)
+            self.assertEqual(len(cells), per_seed * seeds, preset)
+            self.assertEqual(len({experiment.cell_id(cell) for cell in cells}), len(cells), preset)
+            # Any prefix of whole seeds holds every method: seed k's cells come before seed k+1's.
+            self.assertEqual([cell["seed"] for cell in cells],
+                             [seed for seed in range(1, seeds + 1) for _ in range(per_seed)], preset)
+            self.assertTrue(all(cell["flags"].get("deterministic") for cell in cells), preset)
+        label = experiment.labeller(cells)  # multi_room3: the reward kind names each bonus.
+        self.assertEqual({(cell["reward"], label(cell)) for cell in cells},
+                         {("count", "none"), ("count", "shared"), ("count", "imca"), ("rnd", "shared"),
+                          ("rnd", "imca")})
+
 
 class ExperimentErrorsTest(unittest.TestCase):
     def check_one_line(self, entries, *words):

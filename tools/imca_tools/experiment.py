@@ -1,6 +1,6 @@
 """./imca experiment: a grid of training runs, resumable, with tables and plots.
 
-  ./imca experiment --preset paper|edti|headline|frontier|quick [--out DIR] [--jobs N]
+  ./imca experiment --preset paper|edti|headline|frontier|multi_room3|quick [--out DIR] [--jobs N]
   ./imca experiment --grid FILE.json [--out DIR] [--jobs N]
   ./imca experiment --report DIR        (tables and plots of what DIR holds)
   ./imca experiment --status DIR        (each cell: done, running, pending, failed, not run)
@@ -89,6 +89,15 @@ FRONTIER_METHODS = [
     {"scenario": EDTI_TASKS, "reward": "edti", "credit": "independent", "permutation": "off", "steps": 3_000_000},
 ]
 
+# The multi_room3 preset's methods, one seed's worth of entries: 3 agents,
+# where joint-state counts rarely repeat and learned novelty may generalise.
+MULTI_ROOM3_METHODS = [
+    {"scenario": "multi_room3_mace", "reward": "count", "credit": "none", "permutation": "off",
+     "steps": 4_500_000},
+    {"scenario": "multi_room3_mace", "reward": ["count", "rnd"], "credit": ["shared", "imca"], "permutation": "off",
+     "steps": 4_500_000},
+]
+
 
 @functools.lru_cache(maxsize=None)
 def presets():
@@ -138,6 +147,14 @@ def presets():
             # short holds whole seeds of every method.
             "entries": [dict(entry, seed=seed, flags={**entry.get("flags", {}), "deterministic": True})
                         for seed in range(1, 11) for entry in FRONTIER_METHODS],
+        },
+        "multi_room3": {
+            "description": "MACE's 3-agent MultiRoom (multi_room3_mace): count and RND novelty, each with credit "
+                           "shared and imca, against MAPPO without a bonus; 4.5M env steps; 5 seeds, "
+                           "--deterministic",
+            # Seed by seed, as frontier.
+            "entries": [dict(entry, seed=seed, flags={"deterministic": True})
+                        for seed in range(1, 6) for entry in MULTI_ROOM3_METHODS],
         },
         "quick": {
             "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",
