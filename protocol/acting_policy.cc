@@ -28,11 +28,12 @@ void ActingPolicy::Probabilities(const int32_t* states, int num_envs, bool evalu
     return;
   }
   const int obs_dim = featurizer_.obs_dim();
-  obs_.resize(static_cast<size_t>(num_envs) * n_ * obs_dim);
+  // Grown only: actors alternate training and evaluation batches.
+  const size_t size = static_cast<size_t>(num_envs) * n_ * obs_dim;
+  if (obs_.size() < size) obs_.resize(size);
   for (int e = 0; e < num_envs; ++e) {
-    for (int a = 0; a < n_; ++a) {
-      featurizer_.Observe(states + static_cast<size_t>(e) * state_size_, a, &obs_[static_cast<size_t>(e * n_ + a) * obs_dim]);
-    }
+    const int32_t* state = states + static_cast<size_t>(e) * state_size_;
+    for (int a = 0; a < n_; ++a) featurizer_.Observe(state, a, &obs_[static_cast<size_t>(e * n_ + a) * obs_dim]);
   }
   mlp_->Probabilities(obs_.data(), num_envs * n_, probs);
 }

@@ -40,7 +40,7 @@ class ActingPolicy {
   int state_size_;
   std::optional<PolicyMlp> mlp_;
   std::optional<PolicyTable> table_;
-  std::vector<float> obs_;  // A network's inputs, [num_envs * n][obs_dim].
+  std::vector<float> obs_;  // A network's inputs, [num_envs * n][obs_dim] (the largest batch yet).
 };
 
 }  // namespace imca

@@ -99,6 +99,14 @@ MULTI_ROOM3_METHODS = [
 ]
 
 
+def seed_by_seed(methods, seeds):
+    """Entries for each seed in turn, every method of one seed before the
+    next (a grid cut short holds whole seeds of every method), each cell
+    --deterministic."""
+    return [dict(entry, seed=seed, flags={**entry.get("flags", {}), "deterministic": True})
+            for seed in seeds for entry in methods]
+
+
 @functools.lru_cache(maxsize=None)
 def presets():
     """The built-in grids, by name (built when first asked: they use the
@@ -143,18 +151,13 @@ def presets():
                            "pass_cmae, secret_room_cmae and push_box_cmae (4.5M env steps: CMAE's 15,000 "
                            "episodes of 300) and on EDTI's pass and secret_room (CMAE 4.5M, the others 3M as "
                            "in the headline preset); 10 seeds, --deterministic",
-            # Seed by seed (each seed's 25 cells, then the next): a grid cut
-            # short holds whole seeds of every method.
-            "entries": [dict(entry, seed=seed, flags={**entry.get("flags", {}), "deterministic": True})
-                        for seed in range(1, 11) for entry in FRONTIER_METHODS],
+            "entries": seed_by_seed(FRONTIER_METHODS, range(1, 11)),
         },
         "multi_room3": {
             "description": "MACE's 3-agent MultiRoom (multi_room3_mace): count and RND novelty, each with credit "
                            "shared and imca, against MAPPO without a bonus; 4.5M env steps; 5 seeds, "
                            "--deterministic",
-            # Seed by seed, as frontier.
-            "entries": [dict(entry, seed=seed, flags={"deterministic": True})
-                        for seed in range(1, 6) for entry in MULTI_ROOM3_METHODS],
+            "entries": seed_by_seed(MULTI_ROOM3_METHODS, range(1, 6)),
         },
         "quick": {
             "description": "a cut-down paper preset (2 seeds, smaller budgets) that ends in under 30 minutes on 2 cores",

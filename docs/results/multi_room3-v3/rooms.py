@@ -6,13 +6,15 @@ held an agent at some step. Rooms of multi_room3_mace (docs/scenarios.md): left
 (col < 15), right top (rows 0-9), right middle = the target (rows 11-19),
 right bottom (rows 21-29), all at col >= 16.
 
-  docs/results/multi_room3-v3/rooms.py results/multi_room3-v3 > docs/results/multi_room3-v3/rooms.md
+  PYTHONPATH=tools docs/results/multi_room3-v3/rooms.py results/multi_room3-v3 > docs/results/multi_room3-v3/rooms.md
 """
 import collections
 import json
 import os
 import subprocess
 import sys
+
+from imca_tools import runs
 
 EPISODES = 20
 ROOMS = ["left", "right top", "right middle (target)", "right bottom"]
@@ -42,14 +44,18 @@ def main():
     results = sys.argv[1]
     binary = os.path.join(os.environ.get("IMCA_BIN", "build/bin"), "imca_env")
     by_method = collections.defaultdict(collections.Counter)
-    runs = collections.Counter()
-    for cell in sorted(os.listdir(os.path.join(results, "cells"))):
-        folder = os.path.join(results, "cells", cell)
-        if not os.path.exists(os.path.join(folder, "summary.json")):
-            continue  # unfinished
-        reward, credit = cell.split("-")[1:3]
-        method = f"{reward} {credit}" if credit != "none" else "none"
-        runs[method] += 1
+    run_count = collections.Counter()
+    cells = os.path.join(results, "cells")
+    for cell in sorted(os.listdir(cells)):
+        folder = os.path.join(cells, cell)
+        try:
+            config = runs.read_config(folder)
+        except (OSError, ValueError):
+            continue  # not a run folder
+        if runs.finished_summary(folder, config["steps"]) is None:
+            continue  # unfinished or interrupted: as the tables count cells
+        method = f"{config['reward']} {config['credit']}" if config["credit"] != "none" else "none"
+        run_count[method] += 1
         for seed in range(1, EPISODES + 1):
             rooms, doors = episode(binary, os.path.join(folder, "policy.pb"), seed)
             by_method[method].update(rooms | {f"door {d}" for d in doors})
@@ -59,9 +65,9 @@ def main():
     print("| method | runs | " + " | ".join(columns) + " |")
     print("|---" * (len(columns) + 2) + "|")
     for method in ["none", "count shared", "count imca", "rnd shared", "rnd imca"]:
-        if runs[method]:
-            total = runs[method] * EPISODES
-            print(f"| {method} | {runs[method]} | " +
+        if run_count[method]:
+            total = run_count[method] * EPISODES
+            print(f"| {method} | {run_count[method]} | " +
                   " | ".join(f"{100 * by_method[method][c] / total:.0f}%" for c in columns) + " |")
 
 

@@ -266,21 +266,27 @@ bool PlayEpisode(const PolicyTable& table, env::VecEnv& envs, bool evaluation, R
   return !ends.empty() && ends.back().success;
 }
 
-// Acts `episodes` episodes of one env with the algorithm's exported policy,
-// adding each as one unroll of the whole episode (CMAE's loop).
-void Train(Cmae& cmae, const env::Scenario& scenario, env::VecEnv& envs, int episodes, Rng& rng) {
+// One episode of env 0 acted with the algorithm's exported policy, as an
+// actor sends it: one unroll of the whole episode (CMAE's loop).
+void PlayUnroll(const Cmae& cmae, env::VecEnv& envs, int64_t version, Rng& rng, FeaturisedUnroll* f) {
+  const env::Scenario& scenario = envs.scenario();
+  const auto table = PolicyTable::FromProto(cmae.ExportPolicy(version), scenario);
+  ASSERT_TRUE(table.ok()) << table.status();
+  v1::Unroll& u = f->unroll;
+  u.set_actor_id("a");
+  u.set_incarnation(1);
+  u.set_num_envs(1);
+  u.set_num_agents(scenario.num_agents());
+  u.set_num_actions(scenario.num_actions());
+  u.set_state_size(scenario.state_size());
+  PlayEpisode(*table, envs, /*evaluation=*/false, rng, &u);
+}
+
+// Acts and trains on `episodes` episodes of one env.
+void Train(Cmae& cmae, env::VecEnv& envs, int episodes, Rng& rng) {
   for (int episode = 0; episode < episodes; ++episode) {
-    const auto table = PolicyTable::FromProto(cmae.ExportPolicy(episode), scenario);
-    ASSERT_TRUE(table.ok()) << table.status();
     FeaturisedUnroll f;
-    v1::Unroll& u = f.unroll;
-    u.set_actor_id("a");
-    u.set_incarnation(1);
-    u.set_num_envs(1);
-    u.set_num_agents(scenario.num_agents());
-    u.set_num_actions(scenario.num_actions());
-    u.set_state_size(scenario.state_size());
-    PlayEpisode(*table, envs, /*evaluation=*/false, rng, &u);
+    PlayUnroll(cmae, envs, episode, rng, &f);
     ASSERT_TRUE(cmae.Add(f).ok());
     ASSERT_TRUE(cmae.Train().ok());
   }
@@ -331,7 +337,7 @@ TEST(CmaeTest, ExplorationTableIsFittedOnTheWayIntoTheGoal) {
   ASSERT_TRUE(cmae.ok()) << cmae.status();
   env::VecEnv envs(scenario.get(), 1, 9);
   Rng rng(9);
-  Train(**cmae, *scenario, envs, 3, rng);
+  Train(**cmae, envs, 3, rng);
   const auto [goal_state, goal_action] = (*cmae)->goal();
   ASSERT_GE(goal_state, 0);
   const auto trajectory = (*cmae)->replay().GoalTrajectory(goal_state);
@@ -366,7 +372,7 @@ TEST(CmaeTest, ExploitationWeightRisesWithEpisodesAndSaveLoadGoesOnExactly) {
   ASSERT_TRUE(a.ok());
   env::VecEnv envs(scenario.get(), 1, 4);
   Rng rng(4);
-  Train(**a, *scenario, envs, 2, rng);
+  Train(**a, envs, 2, rng);
   EXPECT_EQ((*a)->episodes(), 2);
   EXPECT_DOUBLE_EQ((*a)->exploit_weight(), 0.25);
   EXPECT_DOUBLE_EQ((*a)->ExportPolicy(1).tabular().exploit_weight(), 0.25);
@@ -377,8 +383,8 @@ TEST(CmaeTest, ExploitationWeightRisesWithEpisodesAndSaveLoadGoesOnExactly) {
   // Both go on from the same environment state: equal policies after.
   env::VecEnv envs_b = envs;
   Rng rng_b = rng;
-  Train(**a, *scenario, envs, 10, rng);
-  Train(**b, *scenario, envs_b, 10, rng_b);
+  Train(**a, envs, 10, rng);
+  Train(**b, envs_b, 10, rng_b);
   EXPECT_EQ((*a)->ExportPolicy(5).SerializeAsString(), (*b)->ExportPolicy(5).SerializeAsString());
   EXPECT_DOUBLE_EQ((*b)->exploit_weight(), 1.0);
   // A checkpoint of another scenario's tables is refused, the state kept.
@@ -428,18 +434,12 @@ TEST(CmaeTest, ReportsTheEntropyTheActorsActedWith) {
   Rng rng(11);
   auto played = [&]() {
     FeaturisedUnroll f;
-    f.unroll.set_incarnation(1);
-    f.unroll.set_num_envs(1);
-    f.unroll.set_num_agents(2);
-    f.unroll.set_num_actions(4);
-    f.unroll.set_state_size(scenario->state_size());
-    const auto table = PolicyTable::FromProto((*cmae)->ExportPolicy(0), *scenario);
-    PlayEpisode(*table, envs, false, rng, &f.unroll);
+    PlayUnroll(**cmae, envs, 0, rng, &f);
     EXPECT_TRUE((*cmae)->Add(f).ok());
     return (*cmae)->Train()->entropy;
   };
   EXPECT_NEAR(played(), std::log(4.0), 1e-6);
-  Train(**cmae, *scenario, envs, 300, rng);
+  Train(**cmae, envs, 300, rng);
   EXPECT_LT(played(), 0.5 * std::log(4.0));
 }
 
@@ -470,7 +470,7 @@ TEST(CmaeTest, SolvesASmallTwoAgentRoomTask) {
   EXPECT_LE(Evaluate(**cmae, *scenario, 20, 99), 0.3);
   env::VecEnv envs(scenario.get(), 1, 11);
   Rng rng(11);
-  Train(**cmae, *scenario, envs, 300, rng);
+  Train(**cmae, envs, 300, rng);
   EXPECT_GE(Evaluate(**cmae, *scenario, 20, 99), 0.9);
 }
 
