@@ -167,6 +167,11 @@ struct ScenarioTuning {
   std::optional<double> learning_rate;       // PpoConfig::learning_rate.
   std::optional<bool> separate_optimizers;   // PpoConfig::separate_optimizers.
   std::optional<int> unroll_length;          // ActorConfig::unroll_length.
+  // Multiplies the reward server's default beta of every reward kind
+  // (reward::DefaultScorerConfig): the intrinsic bonus at the scale of the
+  // task's own reward where that differs from the scale the defaults were
+  // measured at.
+  std::optional<double> bonus_scale;
 };
 
 // The tuning of scenario `name` (an unknown name: none, all general defaults).

@@ -46,7 +46,8 @@ ABSL_FLAG(std::optional<std::string>, credit, std::nullopt,
 ABSL_FLAG(std::string, permutation, imca::reward::PermutationName(kScorer.permutation),
           "permutation mode: off|random|canonical");
 ABSL_FLAG(std::optional<double>, beta, std::nullopt,
-          "coefficient of the global intrinsic reward (default: the reward kind's; --list)");
+          "coefficient of the global intrinsic reward (default: the reward kind's, times the scenario's bonus "
+          "scale; --list)");
 ABSL_FLAG(double, temperature, kScorer.temperature, "softmax temperature tau of the credit shares");
 ABSL_FLAG(uint64_t, seed, kScorer.seed, "seed of the random permutation mode");
 ABSL_FLAG(bool, deterministic, kScorer.deterministic,
@@ -101,13 +102,17 @@ std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig
       .Text();
 }
 
-// --list: one JSON object. Each reward kind is built on `scenario` to ask
+// --list: one JSON object (reward_defaults by kind, then scenario). Each reward kind is built on `scenario` to ask
 // which credit modes it serves; a kind that cannot be built is an error.
 int List(const imca::env::Scenario& scenario) {
   using namespace imca;
   JsonObject rewards, defaults;
   for (const std::string& kind : reward::RewardKinds()) {
-    defaults.Raw(kind, ConfigJson(kind, reward::DefaultScorerConfig(kind), kKinds));
+    JsonObject by_scenario;
+    for (const std::string& name : env::ScenarioNames()) {
+      by_scenario.Raw(name, ConfigJson(kind, reward::DefaultScorerConfig(kind, name), kKinds));
+    }
+    defaults.Raw(kind, by_scenario.Text());
     auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{}, {});
     if (!novelty.ok()) return Fail(absl::StrCat("--list: reward kind ", kind, ": ", novelty.status().message()));
     std::vector<std::string> credits;
@@ -147,7 +152,7 @@ int main(int argc, char** argv) {
   if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
 
   const std::string kind = absl::GetFlag(FLAGS_reward);
-  reward::ScorerConfig config = reward::DefaultScorerConfig(kind);
+  reward::ScorerConfig config = reward::DefaultScorerConfig(kind, (*scenario)->name());
   if (const auto credit_name = absl::GetFlag(FLAGS_credit)) {
     auto credit = reward::ParseCredit(*credit_name);
     if (!credit.ok()) return Fail(absl::StrCat("--credit: ", credit.status().message()));

@@ -9,7 +9,7 @@ namespace imca::reward {
 
 std::vector<std::string> RewardKinds() { return {"count", "rnd", "sf", "eiti", "edti"}; }
 
-ScorerConfig DefaultScorerConfig(const std::string& kind) {
+ScorerConfig DefaultScorerConfig(const std::string& kind, absl::string_view scenario) {
   ScorerConfig config;
   if (kind == "count" || kind == "rnd" || kind == "sf") {
     // The global bonuses: half the novelty, split by IMCA (the scale of every
@@ -21,6 +21,7 @@ ScorerConfig DefaultScorerConfig(const std::string& kind) {
     config.credit = Credit::kIndependent;
     config.beta = 1.0;
   }
+  config.beta *= env::TuningOf(scenario).bonus_scale.value_or(1.0);
   return config;
 }
 

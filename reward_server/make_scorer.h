@@ -29,12 +29,15 @@ struct RewardKindConfig {
 // The reward kinds MakeScorer knows, in the order docs list them.
 std::vector<std::string> RewardKinds();
 
-// The scorer defaults of reward kind `kind`: ScorerConfig's, joined with the
-// kind's own (count, rnd, sf: credit imca, beta 0.5; eiti, edti: credit
-// independent and beta 1, their own coefficients setting the scale). An
-// unknown kind gets ScorerConfig's (MakeScorer then names the known ones).
-// The reward server's flags override them; --list prints them per kind.
-ScorerConfig DefaultScorerConfig(const std::string& kind);
+// The scorer defaults of reward kind `kind` on scenario `scenario`:
+// ScorerConfig's, joined with the kind's own (count, rnd, sf: credit imca,
+// beta 0.5; eiti, edti: credit independent and beta 1, their own
+// coefficients setting the scale), beta times the scenario's bonus_scale
+// (env::TuningOf; CMAE's tasks: 1e-3). An unknown kind gets ScorerConfig's
+// (MakeScorer then names the known ones), an unknown scenario no scale. The
+// reward server's flags override them; --list prints them per kind and
+// scenario.
+ScorerConfig DefaultScorerConfig(const std::string& kind, absl::string_view scenario);
 
 // The Novelty of reward kind `kind` for `scenario`. Errors: INVALID_ARGUMENT
 // for an unknown kind (naming the known ones) or bad kind settings.

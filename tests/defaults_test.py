@@ -83,7 +83,9 @@ class OneHomeTest(unittest.TestCase):
                              print_config("learner", [f"--scenario={scenario}"]))
             self.assertEqual(known["actor_defaults"]["mappo"][scenario],
                              print_config("actor", [f"--scenario={scenario}"]))
-        self.assertEqual(known["reward_defaults"]["rnd"], print_config("reward_server", ["--reward=rnd"]))
+        self.assertEqual(known["reward_defaults"]["rnd"]["coop_nav"], print_config("reward_server", ["--reward=rnd"]))
+        self.assertEqual(known["reward_defaults"]["edti"]["push_box_cmae"],
+                         print_config("reward_server", ["--reward=edti", "--scenario=push_box_cmae"]))
         # CMAE's loop: one actor of one env acting a 300-step episode per version.
         self.assertEqual(known["actor_defaults"]["cmae"]["pass_cmae"],
                          print_config("actor", ["--scenario=pass_cmae", "--algo=cmae"]))
@@ -113,6 +115,12 @@ class OneHomeTest(unittest.TestCase):
         self.assertEqual(print_config("actor", ["--scenario=pass"])["unroll_length"], 16)
         self.assertEqual(print_config("reward_server", [])["beta"], 0.5)
         self.assertEqual(print_config("reward_server", ["--reward=edti"])["credit"], "independent")
+        # CMAE's tasks pay +1 where EDTI's pay +1000: every bonus at a thousandth, a flag still wins.
+        for scenario in ("pass_cmae", "secret_room_cmae", "push_box_cmae"):
+            self.assertEqual(print_config("reward_server", [f"--scenario={scenario}"])["beta"], 5e-4)
+            self.assertEqual(print_config("reward_server", [f"--scenario={scenario}", "--reward=edti"])["beta"], 1e-3)
+        self.assertEqual(print_config("reward_server", ["--scenario=pass_cmae", "--beta=0.5"])["beta"], 0.5)
+        self.assertEqual(print_config("reward_server", ["--scenario=pass_mace"])["beta"], 0.5)
 
 
 class ManifestsPassOnlyOverridesTest(unittest.TestCase):

@@ -188,31 +188,37 @@ def default_text(flag, programs, known):
     if "imca_env" in programs:
         return "the scenario's"  # Its parameters (num_agents, ...) are in its spec, not in --list.
     if program == "reward_server":
-        values, default_key = {r: d.get(name) for r, d in known["reward_defaults"].items()}, known["default_reward"]
-    elif program == "actor":
-        values, default_key = ({s: d.get(name) for s, d in known["actor_defaults"]["mappo"].items()},
-                               known["default_scenario"])
-    elif program == "learner":
-        table = known["learner_defaults"]
-        if any(d.get(name) is None for by_scenario in table.values() for d in by_scenario.values()):
-            return None
-        if all(len({_fmt(d[name]) for d in table[a].values()}) == 1 for a in table):  # By algorithm only.
-            values, default_key = {a: next(iter(table[a].values()))[name] for a in table}, known["default_algo"]
-        elif all(len({_fmt(table[a][s][name]) for a in table}) == 1 for s in table[known["default_algo"]]):
-            values = {s: d[name] for s, d in table[known["default_algo"]].items()}  # By scenario only.
-            default_key = known["default_scenario"]
-        else:
-            return "the scenario's and algorithm's"
-    else:
+        return _two_level_text(known["reward_defaults"], name, known["default_reward"], known["default_scenario"],
+                               both=lambda by_kind: f"{by_kind} on {known['default_scenario']}; "
+                                                    "some scenarios scale it (docs/learner.md)")
+    if program == "actor":
+        values = {s: d.get(name) for s, d in known["actor_defaults"]["mappo"].items()}
+        return None if None in values.values() else _summary(values, known["default_scenario"])
+    if program == "learner":
+        return _two_level_text(known["learner_defaults"], name, known["default_algo"], known["default_scenario"],
+                               both=lambda _: "the scenario's and algorithm's")
+    return None
+
+
+def _two_level_text(table, name, outer_default, scenario_default, both):
+    """The default text of setting `name` in a table {algorithm or reward
+    kind: {scenario: defaults}}: by the outer key, or by scenario, where only
+    one of them matters; else both(the outer key's summary on the default
+    scenario). None if a default does not hold the setting."""
+    if any(d.get(name) is None for by_scenario in table.values() for d in by_scenario.values()):
         return None
-    return None if None in values.values() else _summary(values, default_key)
+    if all(len({_fmt(d[name]) for d in table[o].values()}) == 1 for o in table):  # By the outer key only.
+        return _summary({o: next(iter(table[o].values()))[name] for o in table}, outer_default)
+    if all(len({_fmt(table[o][s][name]) for o in table}) == 1 for s in table[outer_default]):  # By scenario only.
+        return _summary({s: d[name] for s, d in table[outer_default].items()}, scenario_default)
+    return both(_summary({o: table[o][scenario_default][name] for o in table}, outer_default))
 
 
 def resolved_defaults(args):
     """{program: {binary flag: default}} for the scenario, algorithm and
     reward kind of args: what `<program> --list` resolves."""
     known = binaries.facts()
-    return {"reward_server": known["reward_defaults"][args.reward],
+    return {"reward_server": known["reward_defaults"][args.reward][args.scenario],
             "learner": known["learner_defaults"][args.algo][args.scenario],
             "actor": known["actor_defaults"][args.algo][args.scenario]}
 
