@@ -157,10 +157,11 @@ class Scenario {
 std::vector<std::string> ScenarioNames();
 
 // Where a scenario's training differs from the components' general defaults
-// (LearnerConfig, PpoConfig, ActorConfig): EnvPool's per-env default config,
-// kept beside the scenario's spec. Unset fields take the general default;
-// flags given by a user win over both (DefaultLearnerConfig,
-// DefaultActorConfig resolve them). docs/learner.md, "Defaults", has how
+// (LearnerConfig, PpoConfig, ActorConfig, reward::ScorerConfig): EnvPool's
+// per-env default config, kept beside the scenario's spec. Unset fields take
+// the general default; flags given by a user win over both
+// (DefaultLearnerConfig, DefaultActorConfig, reward::DefaultScorerConfig
+// resolve them). docs/learner.md, "Defaults", has how
 // each was measured.
 struct ScenarioTuning {
   std::optional<int64_t> batch_steps;        // LearnerConfig::batch_steps.
@@ -170,7 +171,7 @@ struct ScenarioTuning {
   // Multiplies the reward server's default beta of every reward kind
   // (reward::DefaultScorerConfig): the intrinsic bonus at the scale of the
   // task's own reward where that differs from the scale the defaults were
-  // measured at.
+  // measured at. Keyed by the scenario, not its --success_reward.
   std::optional<double> bonus_scale;
 };
 

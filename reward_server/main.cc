@@ -102,8 +102,9 @@ std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig
       .Text();
 }
 
-// --list: one JSON object (reward_defaults by kind, then scenario). Each reward kind is built on `scenario` to ask
-// which credit modes it serves; a kind that cannot be built is an error.
+// --list: one JSON object (reward_defaults by kind, then scenario). Each
+// reward kind is built on `scenario` to ask which credit modes it serves; a
+// kind that cannot be built is an error.
 int List(const imca::env::Scenario& scenario) {
   using namespace imca;
   JsonObject rewards, defaults;

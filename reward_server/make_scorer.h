@@ -33,8 +33,8 @@ std::vector<std::string> RewardKinds();
 // ScorerConfig's, joined with the kind's own (count, rnd, sf: credit imca,
 // beta 0.5; eiti, edti: credit independent and beta 1, their own
 // coefficients setting the scale), beta times the scenario's bonus_scale
-// (env::TuningOf; CMAE's tasks: 1e-3). An unknown kind gets ScorerConfig's
-// (MakeScorer then names the known ones), an unknown scenario no scale. The
+// (env::TuningOf). An unknown kind gets ScorerConfig's, beta scaled the same
+// (MakeScorer then names the known kinds); an unknown scenario no scale. The
 // reward server's flags override them; --list prints them per kind and
 // scenario.
 ScorerConfig DefaultScorerConfig(const std::string& kind, absl::string_view scenario);

@@ -266,6 +266,20 @@ class SlurmTest(unittest.TestCase):
             self.assertEqual(read_csv(os.path.join(cluster, name), WALL_COLUMNS),
                              read_csv(os.path.join(local, name), WALL_COLUMNS), name)
 
+        # A finished cell run with other settings (defaults changed since) is
+        # not mixed in: the submission stops with one line naming the setting.
+        config_path = os.path.join(cluster, "cells", order[0], "config.json")
+        with open(config_path) as f:
+            config = json.load(f)
+        config["beta"] = config["beta"] * 2
+        with open(config_path, "w") as f:
+            json.dump(config, f)
+        r = self.experiment(*submit)
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn(f"{order[0]} was run with beta", r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(cluster, "submissions", "3.json")))
+
     def test_refusals_are_one_line(self):
         grid = write_grid(self.tmp)
         out = os.path.join(self.tmp, "refused")

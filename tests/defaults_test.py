@@ -115,7 +115,8 @@ class OneHomeTest(unittest.TestCase):
         self.assertEqual(print_config("actor", ["--scenario=pass"])["unroll_length"], 16)
         self.assertEqual(print_config("reward_server", [])["beta"], 0.5)
         self.assertEqual(print_config("reward_server", ["--reward=edti"])["credit"], "independent")
-        # CMAE's tasks pay +1 where EDTI's pay +1000: every bonus at a thousandth, a flag still wins.
+        # CMAE's tasks pay +1 where EDTI's pay +1000: every kind's beta at a thousandth (count and edti
+        # measured so, docs/learner.md), a flag still wins.
         for scenario in ("pass_cmae", "secret_room_cmae", "push_box_cmae"):
             self.assertEqual(print_config("reward_server", [f"--scenario={scenario}"])["beta"], 5e-4)
             self.assertEqual(print_config("reward_server", [f"--scenario={scenario}", "--reward=edti"])["beta"], 1e-3)

@@ -412,6 +412,7 @@ def write_k8s(out, grid_name, todo, res, jobs, image, claim, results_dir):
 def submit(args, grid, cells, out):
     """--backend slurm|k8s: submits the cells that are neither finished nor
     queued or running (only those --only names, if given). Returns the exit code."""
+    experiment.check_finished_settings(cells, out)
     res = resources(grid, args)
     records = load_submissions(out)
     live = live_cells(out, records) if args.backend == "slurm" else {}

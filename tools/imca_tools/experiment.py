@@ -149,8 +149,9 @@ def presets():
             "description": "past the paper: CMAE (its released code's tabular method, docs/baselines.md) against "
                            "MAPPO with count novelty and credit none/shared/imca and against EDTI, on CMAE's "
                            "pass_cmae, secret_room_cmae and push_box_cmae (4.5M env steps: CMAE's 15,000 "
-                           "episodes of 300) and on EDTI's pass and secret_room (CMAE 4.5M, the others 3M as "
-                           "in the headline preset); 10 seeds, --deterministic",
+                           "episodes of 300; the bonuses at a thousandth, the scale of their +1 reward) and on "
+                           "EDTI's pass and secret_room (CMAE 4.5M, the others 3M as in the headline preset); "
+                           "10 seeds, --deterministic",
             "entries": seed_by_seed(FRONTIER_METHODS, range(1, 11)),
         },
         "multi_room3": {
@@ -354,6 +355,19 @@ def settings_conflict(run_dir, cell):
     return None
 
 
+def check_finished_settings(cells, out):
+    """Raises ExperimentError for the first finished cell whose config.json
+    differs from what ./imca train would now use (resuming would put the
+    results of two different configurations in one table)."""
+    for cell in cells:
+        run_dir = os.path.join(out, "cells", cell_id(cell))
+        if finished(run_dir, cell):
+            conflict = settings_conflict(run_dir, cell)
+            if conflict:
+                raise ExperimentError(f"{run_dir} was run with {conflict} (its defaults changed since); "
+                                      "use another --out, or --report to redraw the old results")
+
+
 def default_jobs():
     # One run keeps about two cores busy (the learner, the actors and the
     # reward server); more runs than cores/2 slow every run down.
@@ -388,17 +402,9 @@ def start_cell(cell, run_dir):
 
 def run_cells(cells, out, jobs):
     """Runs the unfinished cells, `jobs` at a time. Returns False if interrupted."""
-    todo = []
-    for cell in cells:
-        run_dir = os.path.join(out, "cells", cell_id(cell))
-        if finished(run_dir, cell):
-            conflict = settings_conflict(run_dir, cell)
-            if conflict:
-                # Resuming would mix results of two different learners in one table.
-                raise ExperimentError(f"{run_dir} was run with {conflict} (its defaults changed since); "
-                                      "use another --out, or --report to redraw the old results")
-            continue
-        todo.append((cell, run_dir))
+    check_finished_settings(cells, out)
+    todo = [(cell, os.path.join(out, "cells", cell_id(cell))) for cell in cells
+            if not finished(os.path.join(out, "cells", cell_id(cell)), cell)]
     done_before = len(cells) - len(todo)
     print(f"imca experiment: {len(cells)} cells, {done_before} already finished, {len(todo)} to run, "
           f"{jobs} at a time; results in {out}", file=sys.stderr, flush=True)

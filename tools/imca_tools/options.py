@@ -188,9 +188,9 @@ def default_text(flag, programs, known):
     if "imca_env" in programs:
         return "the scenario's"  # Its parameters (num_agents, ...) are in its spec, not in --list.
     if program == "reward_server":
-        return _two_level_text(known["reward_defaults"], name, known["default_reward"], known["default_scenario"],
-                               both=lambda by_kind: f"{by_kind} on {known['default_scenario']}; "
-                                                    "some scenarios scale it (docs/learner.md)")
+        table, scenario = known["reward_defaults"], known["default_scenario"]
+        return _two_level_text(table, name, known["default_reward"], scenario,
+                               both=lambda by_kind: _scaled_text(table, name, scenario, by_kind))
     if program == "actor":
         values = {s: d.get(name) for s, d in known["actor_defaults"]["mappo"].items()}
         return None if None in values.values() else _summary(values, known["default_scenario"])
@@ -212,6 +212,23 @@ def _two_level_text(table, name, outer_default, scenario_default, both):
     if all(len({_fmt(table[o][s][name]) for o in table}) == 1 for s in table[outer_default]):  # By scenario only.
         return _summary({s: d[name] for s, d in table[outer_default].items()}, scenario_default)
     return both(_summary({o: table[o][scenario_default][name] for o in table}, outer_default))
+
+
+def _scaled_text(table, name, scenario_default, by_kind):
+    """A reward kind's default that scenarios scale (the bonus_scale of
+    env/env.h) as "0.5; 1 for eiti, edti; times 0.001 on pass_cmae, ...";
+    "the reward kind's and scenario's" where it is not one scale per scenario."""
+    scales = {}
+    for scenario in table[next(iter(table))]:
+        if not all(isinstance(table[k][scenario_default][name], (int, float)) and table[k][scenario_default][name]
+                   for k in table):
+            return "the reward kind's and scenario's"
+        ratios = {_fmt(table[k][scenario][name] / table[k][scenario_default][name]) for k in table}
+        if len(ratios) != 1:
+            return "the reward kind's and scenario's"
+        scales.setdefault(ratios.pop(), []).append(scenario)
+    scales.pop("1", None)
+    return "; ".join([by_kind] + [f"times {r} on {', '.join(s)}" for r, s in scales.items()])
 
 
 def resolved_defaults(args):
