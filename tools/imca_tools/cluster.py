@@ -412,13 +412,12 @@ def write_k8s(out, grid_name, todo, res, jobs, image, claim, results_dir):
 def submit(args, grid, cells, out):
     """--backend slurm|k8s: submits the cells that are neither finished nor
     queued or running (only those --only names, if given). Returns the exit code."""
-    experiment.check_finished_settings(cells, out)
+    unfinished = {cell_id(c) for c, _ in experiment.unfinished_cells(cells, out)}
     res = resources(grid, args)
     records = load_submissions(out)
     live = live_cells(out, records) if args.backend == "slurm" else {}
-    todo = [c for c in experiment.only(cells, args.only)
-            if cell_id(c) not in live and not experiment.finished(os.path.join(out, "cells", cell_id(c)), c)]
-    finished = sum(1 for c in cells if experiment.finished(os.path.join(out, "cells", cell_id(c)), c))
+    todo = [c for c in experiment.only(cells, args.only) if cell_id(c) not in live and cell_id(c) in unfinished]
+    finished = len(cells) - len(unfinished)
     print(f"imca experiment: {len(cells)} cells, {finished} finished, {len(live)} queued or running, "
           f"{len(todo)} to submit; results in {out}", file=sys.stderr, flush=True)
     if not todo:

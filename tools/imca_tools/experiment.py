@@ -355,17 +355,24 @@ def settings_conflict(run_dir, cell):
     return None
 
 
-def check_finished_settings(cells, out):
-    """Raises ExperimentError for the first finished cell whose config.json
-    differs from what ./imca train would now use (resuming would put the
-    results of two different configurations in one table)."""
+def cell_dir(out, cell):
+    return os.path.join(out, "cells", cell_id(cell))
+
+
+def unfinished_cells(cells, out):
+    """The (cell, run folder) of each cell not finished in `out`. Raises
+    ExperimentError for a finished cell whose config.json differs from what
+    ./imca train would now use (resuming would put the results of two
+    different configurations in one table)."""
+    todo = []
     for cell in cells:
-        run_dir = os.path.join(out, "cells", cell_id(cell))
-        if finished(run_dir, cell):
-            conflict = settings_conflict(run_dir, cell)
-            if conflict:
-                raise ExperimentError(f"{run_dir} was run with {conflict} (its defaults changed since); "
-                                      "use another --out, or --report to redraw the old results")
+        run_dir = cell_dir(out, cell)
+        if not finished(run_dir, cell):
+            todo.append((cell, run_dir))
+        elif conflict := settings_conflict(run_dir, cell):
+            raise ExperimentError(f"{run_dir} was run with {conflict} (its defaults changed since); "
+                                  "use another --out, or --report to redraw the old results")
+    return todo
 
 
 def default_jobs():
@@ -402,9 +409,7 @@ def start_cell(cell, run_dir):
 
 def run_cells(cells, out, jobs):
     """Runs the unfinished cells, `jobs` at a time. Returns False if interrupted."""
-    check_finished_settings(cells, out)
-    todo = [(cell, os.path.join(out, "cells", cell_id(cell))) for cell in cells
-            if not finished(os.path.join(out, "cells", cell_id(cell)), cell)]
+    todo = unfinished_cells(cells, out)
     done_before = len(cells) - len(todo)
     print(f"imca experiment: {len(cells)} cells, {done_before} already finished, {len(todo)} to run, "
           f"{jobs} at a time; results in {out}", file=sys.stderr, flush=True)
@@ -576,7 +581,7 @@ def main(argv=None):
                 complete, failed = run_cells(only(cells, args.only), out, args.jobs or default_jobs())
         from . import report  # matplotlib only once something is to be drawn
 
-        results = {cell_id(c): finished(os.path.join(out, "cells", cell_id(c)), c) for c in cells}
+        results = {cell_id(c): finished(cell_dir(out, c), c) for c in cells}
         report.write(out, cells, results, labeller(cells), cell_id)
         if args.wait:
             failed = sum(1 for c in only(cells, args.only) if results[cell_id(c)] is None)

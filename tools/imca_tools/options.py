@@ -188,47 +188,46 @@ def default_text(flag, programs, known):
     if "imca_env" in programs:
         return "the scenario's"  # Its parameters (num_agents, ...) are in its spec, not in --list.
     if program == "reward_server":
-        table, scenario = known["reward_defaults"], known["default_scenario"]
-        return _two_level_text(table, name, known["default_reward"], scenario,
-                               both=lambda by_kind: _scaled_text(table, name, scenario, by_kind))
+        table, kind, scenario = known["reward_defaults"], known["default_reward"], known["default_scenario"]
+        return _two_level_text(table, name, kind, scenario, both=lambda: _scaled_text(table, name, kind, scenario))
     if program == "actor":
         values = {s: d.get(name) for s, d in known["actor_defaults"]["mappo"].items()}
         return None if None in values.values() else _summary(values, known["default_scenario"])
     if program == "learner":
         return _two_level_text(known["learner_defaults"], name, known["default_algo"], known["default_scenario"],
-                               both=lambda _: "the scenario's and algorithm's")
+                               both=lambda: "the scenario's and algorithm's")
     return None
 
 
 def _two_level_text(table, name, outer_default, scenario_default, both):
     """The default text of setting `name` in a table {algorithm or reward
     kind: {scenario: defaults}}: by the outer key, or by scenario, where only
-    one of them matters; else both(the outer key's summary on the default
-    scenario). None if a default does not hold the setting."""
+    one of them matters; else both(). None if a default does not hold the
+    setting."""
     if any(d.get(name) is None for by_scenario in table.values() for d in by_scenario.values()):
         return None
     if all(len({_fmt(d[name]) for d in table[o].values()}) == 1 for o in table):  # By the outer key only.
         return _summary({o: next(iter(table[o].values()))[name] for o in table}, outer_default)
     if all(len({_fmt(table[o][s][name]) for o in table}) == 1 for s in table[outer_default]):  # By scenario only.
         return _summary({s: d[name] for s, d in table[outer_default].items()}, scenario_default)
-    return both(_summary({o: table[o][scenario_default][name] for o in table}, outer_default))
+    return both()
 
 
-def _scaled_text(table, name, scenario_default, by_kind):
+def _scaled_text(table, name, kind_default, scenario_default):
     """A reward kind's default that scenarios scale (the bonus_scale of
     env/env.h) as "0.5; 1 for eiti, edti; times 0.001 on pass_cmae, ...";
     "the reward kind's and scenario's" where it is not one scale per scenario."""
+    base = {k: by_scenario[scenario_default][name] for k, by_scenario in table.items()}
+    if not all(isinstance(v, (int, float)) and v for v in base.values()):
+        return "the reward kind's and scenario's"
     scales = {}
-    for scenario in table[next(iter(table))]:
-        if not all(isinstance(table[k][scenario_default][name], (int, float)) and table[k][scenario_default][name]
-                   for k in table):
-            return "the reward kind's and scenario's"
-        ratios = {_fmt(table[k][scenario][name] / table[k][scenario_default][name]) for k in table}
+    for scenario in table[kind_default]:
+        ratios = {_fmt(table[k][scenario][name] / base[k]) for k in table}
         if len(ratios) != 1:
             return "the reward kind's and scenario's"
-        scales.setdefault(ratios.pop(), []).append(scenario)
-    scales.pop("1", None)
-    return "; ".join([by_kind] + [f"times {r} on {', '.join(s)}" for r, s in scales.items()])
+        if ratios != {"1"}:
+            scales.setdefault(ratios.pop(), []).append(scenario)
+    return "; ".join([_summary(base, kind_default)] + [f"times {r} on {', '.join(s)}" for r, s in scales.items()])
 
 
 def resolved_defaults(args):

@@ -15,7 +15,7 @@ import os
 import sys
 import tarfile
 
-from imca_tools import runs
+from imca_tools import experiment, runs
 
 # What the report reads of metrics.csv (tools/imca_tools/report.py); the rest
 # stays in the cell folders.
@@ -37,11 +37,10 @@ def main(out, archive):
     packed = 0
     with tarfile.open(archive, "w:xz") as tar:
         add(tar, "grid.json", read(os.path.join(out, "grid.json")))
-        for cell in sorted(os.listdir(os.path.join(out, "cells"))):
-            run_dir = os.path.join(out, "cells", cell)
-            if not os.path.isdir(run_dir):  # A .lock file.
-                continue
-            if runs.finished_summary(run_dir, runs.read_config(run_dir)["steps"]) is None:
+        grid = experiment.load_saved_grid(out)
+        for cell_spec in experiment.expand(grid["entries"], "grid.json"):
+            run_dir, cell = experiment.cell_dir(out, cell_spec), experiment.cell_id(cell_spec)
+            if not experiment.finished(run_dir, cell_spec):
                 continue
             for name in ("config.json", "summary.json"):
                 add(tar, f"cells/{cell}/{name}", read(os.path.join(run_dir, name)))

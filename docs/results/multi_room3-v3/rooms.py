@@ -14,7 +14,7 @@ import os
 import subprocess
 import sys
 
-from imca_tools import runs
+from imca_tools import experiment
 
 EPISODES = 20
 ROOMS = ["left", "right top", "right middle (target)", "right bottom"]
@@ -45,16 +45,11 @@ def main():
     binary = os.path.join(os.environ.get("IMCA_BIN", "build/bin"), "imca_env")
     by_method = collections.defaultdict(collections.Counter)
     run_count = collections.Counter()
-    cells = os.path.join(results, "cells")
-    for cell in sorted(os.listdir(cells)):
-        folder = os.path.join(cells, cell)
-        try:
-            config = runs.read_config(folder)
-        except (OSError, ValueError):
-            continue  # not a run folder
-        if runs.finished_summary(folder, config["steps"]) is None:
+    for cell in experiment.expand(experiment.load_saved_grid(results)["entries"], "grid.json"):
+        folder = experiment.cell_dir(results, cell)
+        if not experiment.finished(folder, cell):
             continue  # unfinished or interrupted: as the tables count cells
-        method = f"{config['reward']} {config['credit']}" if config["credit"] != "none" else "none"
+        method = f"{cell['reward']} {cell['credit']}" if cell["credit"] != "none" else "none"
         run_count[method] += 1
         for seed in range(1, EPISODES + 1):
             rooms, doors = episode(binary, os.path.join(folder, "policy.pb"), seed)
