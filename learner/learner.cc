@@ -18,6 +18,7 @@
 #include "learner/algorithms/cmae/cmae.h"
 #include "learner/algorithms/maddpg/maddpg.h"
 #include "learner/algorithms/mappo/mappo.h"
+#include "nn/blas_kernels.h"
 #include "nn/threads.h"
 #include "protocol/policy_table.h"
 #include "protocol/unroll_check.h"
@@ -328,6 +329,7 @@ v1::LearnerStatus Learner::Status() const {
   status.set_unrolls_duplicate(queue.duplicate);
   status.set_actor_incarnations(queue.incarnations);
   status.set_minibatches_skipped(minibatches_skipped_);
+  status.set_kernels(nn::KernelsInUse());
   for (const std::string& actor : queue_.ActorIds()) status.add_actors_seen(actor);
   return status;
 }

@@ -10,7 +10,22 @@
 #include <cstring>
 #include <string>
 
+// ATen's version header alone: torch/torch.h costs ~15 s to compile.
+#include <ATen/Version.h>
+
 namespace imca::nn {
+namespace {
+
+// OpenBLAS's kernels' name, or null when no OpenBLAS is loaded. LibTorch's
+// BLAS is libblas.so.3; when that is OpenBLAS, it is loaded with the binary
+// and its symbols are in the global scope.
+const char* OpenBlasCore() {
+  using CoreName = char* (*)();
+  const auto corename = reinterpret_cast<CoreName>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
+  return corename != nullptr ? corename() : nullptr;
+}
+
+}  // namespace
 
 CpuFeatures ThisCpu() {
   __builtin_cpu_init();
@@ -39,11 +54,7 @@ std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFea
 
 void UseTheCpusBlasKernels(char** argv) {
   const char* set = std::getenv("OPENBLAS_CORETYPE");
-  // LibTorch's BLAS is libblas.so.3; when that is OpenBLAS, it is loaded
-  // with the binary and its symbols are in the global scope.
-  using CoreName = char* (*)();
-  const auto corename = reinterpret_cast<CoreName>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
-  const char* core = corename != nullptr ? corename() : nullptr;
+  const char* core = OpenBlasCore();
   const std::string type(CoreTypeToForce(set, core, ThisCpu()));
   if (type.empty()) return;
   std::fprintf(stderr, "%s: OpenBLAS chose its %s kernels on this CPU; restarting with OPENBLAS_CORETYPE=%s\n",
@@ -53,6 +64,25 @@ void UseTheCpusBlasKernels(char** argv) {
   std::fprintf(stderr, "%s: restarting failed (%s); going on with OpenBLAS's %s kernels\n", argv[0],
                std::strerror(errno), core);
   unsetenv("OPENBLAS_CORETYPE");
+}
+
+const std::string& KernelsInUse() {
+  static const std::string* const kernels = [] {
+    // at::native::get_cpu_capability is not exported by Debian's LibTorch;
+    // show_config prints the same cached level as "CPU capability usage:
+    // NO AVX|AVX2|AVX512".
+    const std::string config = at::show_config();
+    constexpr std::string_view kKey = "CPU capability usage: ";
+    std::string aten = "unknown";
+    if (const size_t pos = config.find(kKey); pos != std::string::npos) {
+      const size_t from = pos + kKey.size();
+      const std::string level = config.substr(from, config.find('\n', from) - from);
+      aten = level == "NO AVX" ? "default" : level == "AVX2" ? "avx2" : level == "AVX512" ? "avx512" : level;
+    }
+    const char* core = OpenBlasCore();
+    return new std::string("aten=" + aten + " openblas=" + (core != nullptr ? core : "none"));
+  }();
+  return *kernels;
 }
 
 }  // namespace imca::nn

@@ -2,6 +2,7 @@
 #define IMCA_NN_BLAS_KERNELS_H_
 // Torch-free: any translation unit may include this.
 
+#include <string>
 #include <string_view>
 
 namespace imca::nn {
@@ -37,6 +38,15 @@ std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFea
 // stderr; the process goes on with the kernels it has). Not thread-safe:
 // call before any thread of the program's own starts.
 void UseTheCpusBlasKernels(char** argv);
+
+// The CPU kernels this process's numerics run, as
+// "aten=<default|avx2|avx512> openblas=<core>" ("openblas=none" without an
+// OpenBLAS): ATen's dispatch level (Debian's LibTorch 1.13: avx2 on a CPU
+// with AVX2 and FMA, else default; ATEN_CPU_CAPABILITY overrides it) and
+// OpenBLAS's kernels (by CPU model, or OPENBLAS_CORETYPE). A deterministic
+// run replays bit for bit where these are the same (docs/learner.md,
+// "Deterministic runs"). Fixed for the process's life; thread-safe.
+const std::string& KernelsInUse();
 
 }  // namespace imca::nn
 

@@ -8,6 +8,7 @@
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include "nn/blas_kernels.h"
 #include "protocol/unroll_check.h"
 #include "rpc/grpc_util.h"
 #include "rpc/transport.h"
@@ -194,6 +195,7 @@ v1::RewardStats RewardServiceImpl::Stats() const {
     (*response->mutable_score_seconds())[ScorePhaseName(static_cast<ScorePhase>(p))] = score_seconds_[p]->value();
   }
   response->set_handler_seconds(handler_seconds_->value());
+  response->set_kernels(nn::KernelsInUse());
   return stats;
 }
 

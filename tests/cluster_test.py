@@ -22,10 +22,11 @@ import sys
 import tempfile
 import time
 import unittest
+import unittest.mock
 
 import yaml
 
-from imca_tools import binaries, experiment, same_run
+from imca_tools import binaries, cluster, experiment, same_run
 from imca_tools.experiment import cell_id
 
 EXPERIMENT = binaries.module_argv("experiment")
@@ -293,13 +294,28 @@ class SlurmTest(unittest.TestCase):
         self.assertIn("--only: 'nosuch-cell' is not a cell", r.stderr)
 
 
+class SlurmScriptTest(unittest.TestCase):
+    """The batch script, statically (SlurmTest runs it under a real Slurm)."""
+
+    def test_the_submitters_kernels_reach_every_batch_script(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            os.makedirs(cluster.submissions_dir(tmp))
+            without = {k: v for k, v in os.environ.items() if k not in cluster.KERNEL_VARIABLES}
+            for pinned in ({}, {"OPENBLAS_CORETYPE": "Haswell", "ATEN_CPU_CAPABILITY": "avx2"}):
+                with unittest.mock.patch.dict(os.environ, dict(without, **pinned), clear=True):
+                    with open(cluster.task_script(tmp, {"number": 1})) as f:
+                        text = f.read()
+                for name, value in (("OPENBLAS_CORETYPE", "Haswell"), ("ATEN_CPU_CAPABILITY", "avx2")):
+                    self.assertEqual(f"export {name}={value}\n" in text, bool(pinned), text)
+
+
 class KubernetesTest(unittest.TestCase):
     """--backend k8s: the manifest, statically, and the pod's command run here."""
 
-    def manifest(self, out, *argv, grid=None):
+    def manifest(self, out, *argv, grid=None, env=None):
         tmp = os.path.dirname(out)
         source = ["--grid", write_grid(tmp, grid)] if grid else ["--preset", "quick"]
-        r = run(EXPERIMENT + source + ["--out", out, "--backend", "k8s", *argv])
+        r = run(EXPERIMENT + source + ["--out", out, "--backend", "k8s", *argv], env=env)
         self.assertEqual(r.returncode, 0, r.stderr)
         found = re.search(r"wrote (\S+\.yaml)", r.stderr)
         if not found:
@@ -349,6 +365,20 @@ class KubernetesTest(unittest.TestCase):
             with open(os.path.join(binaries.ROOT, "deploy", "k8s", "kustomization.yaml")) as f:
                 (image,) = yaml.safe_load(f)["images"]
             self.assertEqual(f"{image['newName']}:{image['newTag']}", container["image"])
+
+    def test_the_submitters_kernels_reach_every_pod(self):
+        # Nodes of several CPU kinds would run cells on several kernels: the
+        # ones the submitter pins reach every pod (docs/learner.md).
+        with tempfile.TemporaryDirectory() as tmp:
+            without = {k: v for k, v in os.environ.items() if k not in cluster.KERNEL_VARIABLES}
+            _, job = self.manifest(os.path.join(tmp, "a"), env=without)
+            (container,) = job["spec"]["template"]["spec"]["containers"]
+            self.assertNotIn("env", container)
+            _, job = self.manifest(os.path.join(tmp, "b"), env=dict(without, OPENBLAS_CORETYPE="Haswell",
+                                                                    ATEN_CPU_CAPABILITY="avx2"))
+            (container,) = job["spec"]["template"]["spec"]["containers"]
+            self.assertEqual(container["env"], [{"name": "OPENBLAS_CORETYPE", "value": "Haswell"},
+                                                {"name": "ATEN_CPU_CAPABILITY", "value": "avx2"}])
 
     def test_the_pods_command_runs_its_cell_and_a_second_manifest_holds_only_what_is_missing(self):
         grid = {"name": "pods", "entries": [{"scenario": "coop_nav", "reward": "count", "credit": ["shared", "imca"],

@@ -3,6 +3,9 @@
 (2 actors, count imca) whose actors' calls arrive in opposite orders write
 the same files byte for byte (imca_tools.same_run); without the flag, the
 same two runs differ, which shows the arrival orders really were opposite."""
+import contextlib
+import io
+import json
 import os
 import subprocess
 import tempfile
@@ -17,11 +20,11 @@ SHORT = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--b
          "--steps", "16384", "--quiet"]
 
 
-def train(out, delays, *flags):
+def train(out, delays, *flags, env=None):
     # Actor 0 pauses before each Score call in one run, actor 1 in the other:
     # their calls reach the reward server and the learner in opposite orders.
     r = subprocess.run(LAUNCH + SHORT + ["--out", out, "--actor-score-delays-ms", delays, *flags],
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=300, env=env)
     if r.returncode != 0:
         raise AssertionError(f"imca train failed ({r.returncode}): {r.stderr[-2000:]}")
 
@@ -58,6 +61,26 @@ class DeterministicRunTest(unittest.TestCase):
         different = {n for n, x, y in rows if x != y}
         self.assertIn("metrics.csv (no wall columns)", different)
         self.assertIn("reward_snapshot.bin (no journal line)", different)
+
+    def test_runs_name_their_cpu_kernels_and_same_run_says_when_they_differ(self):
+        # ATen's dispatch level is a condition of a replay (docs/learner.md):
+        # each run records it, with OpenBLAS's kernels, and same_run says
+        # when two runs ran other ones.
+        with tempfile.TemporaryDirectory() as tmp:
+            ran = {}
+            for level in ("default", "avx2"):
+                out = os.path.join(tmp, level)
+                train(out, "0,0", "--deterministic", "true", "--reward", "rnd",
+                      env=dict(os.environ, ATEN_CPU_CAPABILITY=level))
+                with open(os.path.join(out, "summary.json")) as f:
+                    ran[level] = json.load(f)["kernels"]
+                self.assertEqual(set(ran[level]), {"learner", "reward_server"}, ran[level])
+                for kernels in ran[level].values():
+                    self.assertRegex(kernels, rf"^aten={level} openblas=\S+$")
+            printed = io.StringIO()
+            with contextlib.redirect_stdout(printed):
+                same_run.main([os.path.join(tmp, "default"), os.path.join(tmp, "avx2")])
+            self.assertIn(f"other CPU kernels ({ran['default']} against {ran['avx2']})", printed.getvalue())
 
     def test_deterministic_needs_synchronous_collection(self):
         with tempfile.TemporaryDirectory() as tmp:

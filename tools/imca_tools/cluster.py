@@ -235,12 +235,24 @@ def slurm_log(out, record, index):
     return os.path.join(out, "logs", f"{record['number']}-{index}.log")
 
 
+KERNEL_VARIABLES = ("OPENBLAS_CORETYPE", "ATEN_CPU_CAPABILITY")
+
+
+def kernel_pins():
+    """The submitter's choice of CPU kernels (OPENBLAS_CORETYPE,
+    ATEN_CPU_CAPABILITY), where set, for every task: a deterministic cell
+    replays only on the kernels it ran, and nodes of several CPU kinds pick
+    several (docs/learner.md, "Deterministic runs")."""
+    return {k: os.environ[k] for k in KERNEL_VARIABLES if os.environ.get(k)}
+
+
 def task_script(out, record):
     """The batch script of a submission: the environment ./imca gives its
-    tools, then the task command. Nodes must see the clone (its tools and
-    build/bin) and DIR at the same paths (a shared filesystem)."""
+    tools and kernel_pins, then the task command. Nodes must see the clone
+    (its tools and build/bin) and DIR at the same paths (a shared
+    filesystem)."""
     env = {"IMCA_ROOT": binaries.ROOT, "IMCA_BIN": binaries.BIN, "PYTHONPATH": binaries.TOOLS,
-           "OMP_WAIT_POLICY": "passive"}
+           "OMP_WAIT_POLICY": "passive", **kernel_pins()}
     lines = ["#!/bin/bash",
              f"# imca experiment submission {record['number']}: task i runs cell i of "
              f"{os.path.basename(submission_path(out, record))} (tools/imca_tools/cluster.py).",
@@ -325,7 +337,8 @@ def queue_text(record):
 
 def k8s_manifest(record, out, res, jobs, image, claim, results_dir):
     """[ConfigMap, Job]: the submission's cells, and an Indexed Job whose pod of
-    completion index i runs cell i into `results_dir` on the claim `claim`."""
+    completion index i runs cell i into `results_dir` on the claim `claim`,
+    with kernel_pins in its environment."""
     name = k8s_name(out, record["number"])
     labels = {"app.kubernetes.io/name": "imca-experiment", "imca/results": name.rsplit("-", 1)[0]}
     resources = {"requests": {"cpu": str(res["cpus_per_task"])}}
@@ -335,6 +348,7 @@ def k8s_manifest(record, out, res, jobs, image, claim, results_dir):
     config_map = {"apiVersion": "v1", "kind": "ConfigMap", "metadata": {"name": name, "labels": labels},
                   "data": {"cells.json": queue_text(record)}}
     count = len(record["cells"])
+    pins = kernel_pins()
     job = {
         "apiVersion": "batch/v1", "kind": "Job", "metadata": {"name": name, "labels": labels},
         "spec": {
@@ -364,6 +378,7 @@ def k8s_manifest(record, out, res, jobs, image, claim, results_dir):
                         "name": "cell", "image": image, "imagePullPolicy": "IfNotPresent",
                         "command": task_command(f"{K8S_QUEUE}/cells.json", results_dir),
                         "resources": resources,
+                        **({"env": [{"name": k, "value": v} for k, v in pins.items()]} if pins else {}),
                         "volumeMounts": [{"name": "results", "mountPath": K8S_RESULTS},
                                          {"name": "queue", "mountPath": K8S_QUEUE, "readOnly": True}],
                     }],

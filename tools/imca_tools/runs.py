@@ -130,9 +130,23 @@ def write_summary(run_dir, config, rows, interrupted):
         "permutation": config["permutation"], "seed": config["seed"],
         # Restarts of each process by the supervisor (logs/restarts.csv says why).
         "restarts": config.get("restarts", {}),
+        "kernels": kernels(run_dir),
     }
     write_json_atomically(os.path.join(run_dir, "summary.json"), summary)
     return summary
+
+
+def kernels(run_dir):
+    """{server: the CPU kernels its numerics ran} from the run's status files,
+    "aten=avx2 openblas=SkylakeX" (nn::KernelsInUse): a deterministic run
+    replays where these are the same (docs/learner.md, "Deterministic
+    runs"). A server whose status file does not say is left out."""
+    found = {}
+    for name in ("learner", "reward_server"):
+        status = read_json(os.path.join(run_dir, "logs", name + ".status.json")) or {}
+        if status.get("kernels"):
+            found[name] = status["kernels"]
+    return found
 
 
 def write_json_atomically(path, value):

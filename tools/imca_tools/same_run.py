@@ -11,7 +11,9 @@ incarnations, which each process draws so that a restarted actor is never
 taken for its predecessor) of every checkpoint both runs kept, the final
 one included (checkpoints are also taken every --checkpoint-seconds, so
 which ones a run keeps depends on time). Prints a sha256 per file and run,
-and exits 1 on any difference.
+and exits 1 on any difference. Runs whose servers ran other CPU kernels
+(summary.json's or the status files' "kernels") are not expected to match:
+it says so first.
 """
 import csv
 import hashlib
@@ -21,6 +23,7 @@ import re
 import sys
 
 from . import binaries
+from . import runs
 
 
 def wall_clock_columns():
@@ -110,6 +113,11 @@ def main(argv=None):
     except binaries.LaunchError as e:
         print(f"imca same_run: {e}", file=sys.stderr)
         return 2
+    ran = [(runs.read_json(os.path.join(run, "summary.json")) or {}).get("kernels") or runs.kernels(run)
+           for run in argv]
+    if any(ran[0][server] != ran[1][server] for server in ran[0].keys() & ran[1].keys()):
+        print(f"imca same_run: the runs ran other CPU kernels ({ran[0]} against {ran[1]}); a deterministic "
+              "run replays only on the same (docs/learner.md, \"Deterministic runs\")")
     for name, x, y in rows:
         print(f"{'same' if x == y else 'DIFFERENT'}  {name}  {x or '(missing)'}  {y or '(missing)'}")
     return 0 if same else 1
