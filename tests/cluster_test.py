@@ -49,6 +49,11 @@ def run(argv, timeout=600, **kwargs):
     return subprocess.run(argv, capture_output=True, text=True, timeout=timeout, **kwargs)
 
 
+def environment_without_kernels():
+    """This process's environment without the variables that choose CPU kernels."""
+    return {k: v for k, v in os.environ.items() if k not in cluster.KERNEL_VARIABLES}
+
+
 def write_grid(directory, grid=GRID):
     path = os.path.join(directory, "grid.json")
     with open(path, "w") as f:
@@ -300,7 +305,7 @@ class SlurmScriptTest(unittest.TestCase):
     def test_the_submitters_kernels_reach_every_batch_script(self):
         with tempfile.TemporaryDirectory() as tmp:
             os.makedirs(cluster.submissions_dir(tmp))
-            without = {k: v for k, v in os.environ.items() if k not in cluster.KERNEL_VARIABLES}
+            without = environment_without_kernels()
             for pinned in ({}, {"OPENBLAS_CORETYPE": "Haswell", "ATEN_CPU_CAPABILITY": "avx2"}):
                 with unittest.mock.patch.dict(os.environ, dict(without, **pinned), clear=True):
                     with open(cluster.task_script(tmp, {"number": 1})) as f:
@@ -370,7 +375,7 @@ class KubernetesTest(unittest.TestCase):
         # Nodes of several CPU kinds would run cells on several kernels: the
         # ones the submitter pins reach every pod (docs/learner.md).
         with tempfile.TemporaryDirectory() as tmp:
-            without = {k: v for k, v in os.environ.items() if k not in cluster.KERNEL_VARIABLES}
+            without = environment_without_kernels()
             _, job = self.manifest(os.path.join(tmp, "a"), env=without)
             (container,) = job["spec"]["template"]["spec"]["containers"]
             self.assertNotIn("env", container)

@@ -63,24 +63,24 @@ class DeterministicRunTest(unittest.TestCase):
         self.assertIn("reward_snapshot.bin (no journal line)", different)
 
     def test_runs_name_their_cpu_kernels_and_same_run_says_when_they_differ(self):
-        # ATen's dispatch level is a condition of a replay (docs/learner.md):
-        # each run records it, with OpenBLAS's kernels, and same_run says
-        # when two runs ran other ones.
+        # OpenBLAS's kernels and ATen's level are conditions of a replay
+        # (docs/learner.md): each run records the ones its servers ran, and
+        # same_run says when two runs ran other ones. Prescott's and
+        # Haswell's kernels run on every CPU these binaries run on.
         with tempfile.TemporaryDirectory() as tmp:
             ran = {}
-            for level in ("default", "avx2"):
-                out = os.path.join(tmp, level)
+            for name, core, level in (("old", "Prescott", "default"), ("new", "Haswell", "avx2")):
+                out = os.path.join(tmp, name)
                 train(out, "0,0", "--deterministic", "true", "--reward", "rnd",
-                      env=dict(os.environ, ATEN_CPU_CAPABILITY=level))
+                      env=dict(os.environ, OPENBLAS_CORETYPE=core, ATEN_CPU_CAPABILITY=level))
                 with open(os.path.join(out, "summary.json")) as f:
-                    ran[level] = json.load(f)["kernels"]
-                self.assertEqual(set(ran[level]), {"learner", "reward_server"}, ran[level])
-                for kernels in ran[level].values():
-                    self.assertRegex(kernels, rf"^aten={level} openblas=\S+$")
+                    ran[name] = json.load(f)["kernels"]
+                expected = f"aten={level} openblas={core}"
+                self.assertEqual(ran[name], {"learner": expected, "reward_server": expected})
             printed = io.StringIO()
             with contextlib.redirect_stdout(printed):
-                same_run.main([os.path.join(tmp, "default"), os.path.join(tmp, "avx2")])
-            self.assertIn(f"other CPU kernels ({ran['default']} against {ran['avx2']})", printed.getvalue())
+                same_run.main([os.path.join(tmp, "old"), os.path.join(tmp, "new")])
+            self.assertIn(f"other CPU kernels ({ran['old']} against {ran['new']})", printed.getvalue())
 
     def test_deterministic_needs_synchronous_collection(self):
         with tempfile.TemporaryDirectory() as tmp:
