@@ -3,6 +3,7 @@
 import csv
 import json
 import os
+import re
 import signal
 import subprocess
 import tempfile
@@ -175,6 +176,40 @@ class ExperimentRunTest(unittest.TestCase):
             self.assertEqual(r.returncode, 0, r.stderr)
             self.assertIn("2 cells, 2 already finished, 0 to run", r.stderr)
 
+    def test_a_deterministic_cell_on_other_kernels_than_the_grids_is_refused(self):
+        # Seed 1 runs on OpenBLAS's Prescott kernels; seed 2 then starts on
+        # Haswell's, which would not replay seed 1's machine: the grid stops
+        # it and says which kernels. Once they are the grid's, it runs.
+        with tempfile.TemporaryDirectory() as tmp:
+            flags = dict(SMALL, deterministic=True)
+            entries = [{"scenario": "coop_nav", "reward": "count", "credit": "shared", "seed": [1, 2],
+                        "steps": 16000, "flags": flags}]
+            out = os.path.join(tmp, "out")
+            argv = EXPERIMENT + ["--grid", grid_file(tmp, entries), "--out", out, "--jobs", "1"]
+            cell = {"scenario": "coop_nav", "reward": "count", "credit": "shared", "permutation": "off",
+                    "steps": 16000, "flags": flags}
+            first, second = (cell_id(dict(cell, seed=seed)) for seed in (1, 2))
+            prescott = dict(os.environ, OPENBLAS_CORETYPE="Prescott", ATEN_CPU_CAPABILITY="default")
+            haswell = dict(os.environ, OPENBLAS_CORETYPE="Haswell", ATEN_CPU_CAPABILITY="avx2")
+            r = subprocess.run(argv + ["--only", first], capture_output=True, text=True, timeout=300, env=prescott)
+            self.assertEqual(r.returncode, 0, r.stderr)
+
+            r = subprocess.run(argv, capture_output=True, text=True, timeout=300, env=haswell)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            last = r.stderr.strip().splitlines()[-1]
+            # Whichever server says first (the reward server starts first).
+            self.assertRegex(last, re.escape(second) + "'s (learner|reward_server) runs " + re.escape(
+                f"'aten=avx2 openblas=Haswell' where the grid's finished cells ran 'aten=default openblas=Prescott' "
+                f"({first})"))
+            self.assertIn("OPENBLAS_CORETYPE", last)
+            self.assertIsNone(experiment.finished(os.path.join(out, "cells", second), dict(cell, seed=2)),
+                              "the refused cell must not finish")
+
+            r = subprocess.run(argv, capture_output=True, text=True, timeout=300, env=prescott)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(out, "cells", second, "summary.json")) as f:
+                self.assertEqual(json.load(f)["kernels"], {"learner": "aten=default openblas=Prescott",
+                                                           "reward_server": "aten=default openblas=Prescott"})
 
 if __name__ == "__main__":
     unittest.main()

@@ -43,8 +43,9 @@ LIVE_STATES = {"PENDING", "CONFIGURING", "RUNNING", "COMPLETING", "SUSPENDED", "
 # Where the Indexed Job's pods see the results claim and the submission.
 K8S_RESULTS = "/results"
 K8S_QUEUE = "/etc/imca/queue"
-# A task's exit code when its cell cannot run as given (a bad submission or
-# flags ./imca train refuses): retrying cannot help.
+# A task's exit code when its cell cannot run as given (a bad submission,
+# flags ./imca train refuses, a deterministic cell on other CPU kernels than
+# the grid's): retrying cannot help.
 EXIT_REFUSED = 2
 
 
@@ -149,11 +150,25 @@ def run_cell(queue_file, index, out):
             print(f"imca experiment: cell {cell_id(cell)} is already finished ({where})", flush=True)
             return 0
         print(f"imca experiment: cell {cell_id(cell)} starts ({where}); log {run_dir}/train.log", flush=True)
+        # The grid's kernels before this cell starts: its own unfinished
+        # folder is emptied, and its status files then are this run's.
+        reference = experiment.grid_kernels(grid_cells(out), out) if experiment.deterministic(cell) else {}
         proc = experiment.start_cell(cell, run_dir)
         stop = lambda *_: proc.poll() is None and proc.send_signal(signal.SIGTERM)
         signal.signal(signal.SIGTERM, stop)
         signal.signal(signal.SIGINT, stop)
+        conflict = None
+        while reference and proc.poll() is None:  # Until both servers have named their kernels.
+            if conflict := experiment.kernels_conflict(reference, run_dir):
+                stop()
+                break
+            if set(runs.kernels(run_dir)) == set(runs.KERNEL_SERVERS):
+                break
+            time.sleep(0.5)
         code = proc.wait()
+    if conflict:
+        print(f"imca experiment: {conflict} ({where})", flush=True)
+        return EXIT_REFUSED  # The node's CPU kernels: a retry on it would be refused again.
     summary = experiment.finished(run_dir, cell)
     if summary is None:
         print(f"imca experiment: cell {cell_id(cell)} did not finish (exit {code}): "
@@ -162,6 +177,11 @@ def run_cell(queue_file, index, out):
         return 1
     print(f"imca experiment: cell {cell_id(cell)} finished: success {summary['final_success_rate']:.0%}", flush=True)
     return 0
+
+
+def grid_cells(out):
+    """The cells of the grid OUT holds (grid.json, saved by the submitter)."""
+    return experiment.expand(experiment.load_saved_grid(out, "--out")["entries"], "grid.json")
 
 
 def task_command(queue_file, out):

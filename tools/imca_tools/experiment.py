@@ -375,6 +375,40 @@ def unfinished_cells(cells, out):
     return todo
 
 
+def deterministic(cell):
+    return bool(cell["flags"].get("deterministic"))
+
+
+def grid_kernels(cells, out):
+    """{server: (kernels, cell id)}: the CPU kernels the grid's finished
+    deterministic cells ran (summary.json "kernels"), the first cell that
+    names each server. Cells run before runs recorded their kernels name none."""
+    found = {}
+    for cell in cells:
+        if not deterministic(cell):
+            continue
+        summary = finished(cell_dir(out, cell), cell) or {}
+        for server, ran in (summary.get("kernels") or {}).items():
+            found.setdefault(server, (ran, cell_id(cell)))
+    return found
+
+
+def kernels_conflict(reference, run_dir):
+    """A one-line description of the first server whose kernels in the
+    running cell `run_dir` (its status files) differ from `reference`
+    (grid_kernels), or None (also while the cell's servers have not said).
+    A deterministic run replays only on the kernels it ran (docs/learner.md,
+    "Deterministic runs"): cells on other kernels would not sit in one table
+    with the finished ones as replays of them."""
+    for server, ran in sorted(runs.kernels(run_dir).items()):
+        if server in reference and reference[server][0] != ran:
+            want, where = reference[server]
+            return (f"{os.path.basename(run_dir)}'s {server} runs '{ran}' where the grid's finished cells ran "
+                    f"'{want}' ({where}); set OPENBLAS_CORETYPE / ATEN_CPU_CAPABILITY to theirs "
+                    "(docs/learner.md, 'Deterministic runs') or use another --out")
+    return None
+
+
 def default_jobs():
     # One run keeps about two cores busy (the learner, the actors and the
     # reward server); more runs than cores/2 slow every run down.
@@ -408,12 +442,18 @@ def start_cell(cell, run_dir):
 
 
 def run_cells(cells, out, jobs):
-    """Runs the unfinished cells, `jobs` at a time. Returns False if interrupted."""
+    """Runs the unfinished cells, `jobs` at a time. Returns (False if
+    interrupted, cells failed). Raises ExperimentError, once the running cells
+    are stopped, when a deterministic cell runs other CPU kernels than the
+    grid's (kernels_conflict)."""
     todo = unfinished_cells(cells, out)
     done_before = len(cells) - len(todo)
     print(f"imca experiment: {len(cells)} cells, {done_before} already finished, {len(todo)} to run, "
           f"{jobs} at a time; results in {out}", file=sys.stderr, flush=True)
     running = []  # (cell, run_dir, Popen, start time, lock file)
+    reference = grid_kernels(cells, out)
+    unchecked = set()  # run folders of deterministic cells whose kernels are not yet compared
+    refused = []
     stop = []
     old_int = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     old_term = signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
@@ -429,12 +469,25 @@ def run_cells(cells, out, jobs):
                     failures.append((cell_id(cell), "it is running in another process (a cluster task?)"))
                     continue
                 running.append((cell, run_dir, start_cell(cell, run_dir), time.time(), lock))
+                if deterministic(cell):
+                    unchecked.add(run_dir)
             time.sleep(0.5)
             for entry in list(running):
                 cell, run_dir, proc, t0, lock = entry
+                if run_dir in unchecked:  # Until both servers have named their kernels.
+                    if conflict := kernels_conflict(reference, run_dir):
+                        refused.append(conflict)
+                        stop.append(1)
+                        break
+                    ran = runs.kernels(run_dir)
+                    for server, kernels in ran.items():  # The first cells of a grid set its kernels.
+                        reference.setdefault(server, (kernels, cell_id(cell)))
+                    if set(ran) == set(runs.KERNEL_SERVERS):
+                        unchecked.discard(run_dir)
                 if proc.poll() is None:
                     continue
                 running.remove(entry)
+                unchecked.discard(run_dir)
                 lock.close()
                 completed += 1
                 summary = finished(run_dir, cell)
@@ -463,6 +516,8 @@ def run_cells(cells, out, jobs):
                       f"(logs/ names them)", file=sys.stderr)
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
+    if refused:
+        raise ExperimentError(refused[0])
     for cid, line in failures:
         print(f"imca experiment: cell {cid} failed: {line}", file=sys.stderr)
     return not stop, len(failures)

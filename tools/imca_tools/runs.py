@@ -136,13 +136,17 @@ def write_summary(run_dir, config, rows, interrupted):
     return summary
 
 
+# The servers whose numerics a run's CPU kernels decide.
+KERNEL_SERVERS = ("learner", "reward_server")
+
+
 def kernels(run_dir):
     """{server: the CPU kernels its numerics ran} from the run's status files,
     "aten=avx2 openblas=SkylakeX" (nn::KernelsInUse): a deterministic run
     replays where these are the same (docs/learner.md, "Deterministic
     runs"). A server whose status file does not say is left out."""
     found = {}
-    for name in ("learner", "reward_server"):
+    for name in KERNEL_SERVERS:
         status = read_json(os.path.join(run_dir, "logs", name + ".status.json")) or {}
         if status.get("kernels"):
             found[name] = status["kernels"]
