@@ -25,7 +25,7 @@ learn  the learning benchmark: credit none/shared/independent/imca x 3 seeds
        With --variants FILE (a JSON object {"name": {train flag: value}}),
        an ablation: every variant x credit x seed, and a table of medians of
        env steps and wall-clock to 90% success. --out DIR resumes: finished
-       runs in DIR are read, not rerun.
+       runs in DIR are read, not rerun (refused if they ran other settings).
 python the Python package against the C++ it wraps, in one run: joint env
        steps/s of imca.make against bench_env at 64, 256 and 1024 envs; Score
        round trips/s and transitions/s of imca.RewardClient against a reward
@@ -46,7 +46,7 @@ import subprocess
 import sys
 import time
 
-from . import binaries, options, runs
+from . import binaries, experiment, options, runs
 from .binaries import BIN, ROOT
 from .supervisor import run_processes
 
@@ -313,22 +313,38 @@ def learn(args, base):
     modes = args.credits.split(",")
     seeds = [int(s) for s in args.seeds.split(",")]
     variants = load_variants(args.variants) if args.variants else [("default", [])]
-    results = {}
+    planned = []  # (variant, credit, seed, run folder, ./imca train flags)
     for name, variant_flags in variants:
         for credit in modes:
             for seed in seeds:
-                out = os.path.join(base, (f"{name}-" if args.variants else "") + f"{credit}-seed{seed}")
-                done = finished_run(out, args.steps)
-                if done is None:
-                    done = train(out, ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
-                                       "--seed", str(seed), "--steps", str(args.steps)] + variant_flags + args.extra)
-                summary, rows = done
-                results[(name, credit, seed)] = done
-                steps90, wall90 = to_90(rows, "train_success_rate")
-                print(f"{name:12s} {credit:12s} seed {seed}: final success {summary['final_success_rate']:.1%}, "
-                      f"to 90% (training episodes) {steps90} steps / {wall90} s, "
-                      f"to 90% (evaluation) {summary['steps_to_90pct_success']}, "
-                      f"{summary['env_steps_per_sec']:.0f} steps/s", flush=True)
+                planned.append((name, credit, seed,
+                                os.path.join(base, (f"{name}-" if args.variants else "") + f"{credit}-seed{seed}"),
+                                ["--scenario", args.scenario, "--reward", args.reward, "--credit", credit,
+                                 "--seed", str(seed), "--steps", str(args.steps)] + variant_flags + args.extra))
+    # Before anything runs: a finished run of other settings (other flags, or
+    # defaults changed since) would sit in the table as if run with these.
+    for _, _, _, out, flags in planned:
+        if finished_run(out, args.steps) is None:
+            continue
+        try:
+            conflict = experiment.config_conflict(out, flags + ["--out", out])
+        except ValueError as error:
+            sys.exit(f"imca bench: {error}")
+        if conflict:
+            sys.exit(f"imca bench: {out} was run with {conflict}; use another --out, or the flags it ran with "
+                     f"(its config.json)")
+    results = {}
+    for name, credit, seed, out, flags in planned:
+        done = finished_run(out, args.steps)
+        if done is None:
+            done = train(out, flags)
+        summary, rows = done
+        results[(name, credit, seed)] = done
+        steps90, wall90 = to_90(rows, "train_success_rate")
+        print(f"{name:12s} {credit:12s} seed {seed}: final success {summary['final_success_rate']:.1%}, "
+              f"to 90% (training episodes) {steps90} steps / {wall90} s, "
+              f"to 90% (evaluation) {summary['steps_to_90pct_success']}, "
+              f"{summary['env_steps_per_sec']:.0f} steps/s", flush=True)
     ablation_table(args, variants, modes, seeds, results)
     if args.variants:
         print(f"\nrun folders: {base}")

@@ -340,15 +340,28 @@ UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", 
 def settings_conflict(run_dir, cell):
     """A one-line description of the first setting in which a finished cell's
     config.json differs from what ./imca train would now use for it (its
-    defaults changed since), or None. Settings the old run did not record
-    are not compared."""
+    defaults changed since), or None (config_conflict)."""
+    return config_conflict(run_dir, train_flags(cell, run_dir))
+
+
+def config_conflict(run_dir, argv):
+    """A one-line description of the first setting in which the finished run
+    in `run_dir` (its config.json) differs from what `./imca train ARGV` would
+    now use, or None. Settings the old run did not record, and those that
+    name where and how it ran (UNCOMPARED_SETTINGS), are not compared.
+    Raises ValueError with ./imca train's one-line message if ARGV is refused.
+    Shared by ./imca experiment and ./imca bench learn, which both resume."""
     try:
         with open(os.path.join(run_dir, "config.json")) as f:
             saved = json.load(f)
     except (OSError, ValueError):
         return None
-    with contextlib.redirect_stderr(io.StringIO()):
-        now = vars(plan.parse_args(train_flags(cell, run_dir)))
+    captured = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(captured):
+            now = vars(plan.parse_args(argv))
+    except SystemExit:
+        raise ValueError(captured.getvalue().strip() or "./imca train refuses the flags")
     for key in sorted(set(saved) & set(now) - UNCOMPARED_SETTINGS):
         if saved[key] != now[key]:
             return f"{key} {saved[key]!r} where ./imca train now uses {now[key]!r}"
