@@ -62,7 +62,7 @@ class DeterministicRunTest(unittest.TestCase):
         self.assertIn("metrics.csv (no wall columns)", different)
         self.assertIn("reward_snapshot.bin (no journal line)", different)
 
-    def test_runs_name_their_cpu_kernels_and_same_run_says_when_they_differ(self):
+    def test_runs_name_their_cpu_kernels_and_builds_and_same_run_says_when_they_differ(self):
         # OpenBLAS's kernels and ATen's level are conditions of a replay
         # (docs/learner.md): each run records the ones its servers ran, and
         # same_run says when two runs ran other ones. Prescott's and
@@ -81,6 +81,20 @@ class DeterministicRunTest(unittest.TestCase):
             with contextlib.redirect_stdout(printed):
                 same_run.main([os.path.join(tmp, "old"), os.path.join(tmp, "new")])
             self.assertIn(f"other CPU kernels ({ran['old']} against {ran['new']})", printed.getvalue())
+            # Both ran this build, each from its own copy (config.json's sha256 per binary).
+            self.assertNotIn("other builds", printed.getvalue())
+            # A learner of another build (as if rebuilt between the runs): said, by name.
+            config_path = os.path.join(tmp, "new", "config.json")
+            with open(config_path) as f:
+                config = json.load(f)
+            self.assertEqual(set(config["binaries"]), {"reward_server", "learner", "actor", "imca_env"})
+            config["binaries"]["learner"] = "0" * 64
+            with open(config_path, "w") as f:
+                json.dump(config, f)
+            printed = io.StringIO()
+            with contextlib.redirect_stdout(printed):
+                same_run.main([os.path.join(tmp, "old"), os.path.join(tmp, "new")])
+            self.assertIn("the runs ran other builds of learner (config.json's binaries)", printed.getvalue())
 
     def test_deterministic_needs_synchronous_collection(self):
         with tempfile.TemporaryDirectory() as tmp:

@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """./imca train (imca_tools.train, its plan and supervisor) against the real binaries."""
 import csv
+import hashlib
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -275,6 +277,48 @@ class LauncherRunTest(unittest.TestCase):
             self.assertGreater(int(after[len(before)]["env_steps"]), int(before[-1]["env_steps"]))
             self.assertGreater(int(after[len(before)]["policy_version"]), int(before[-1]["policy_version"]))
             self.assertGreaterEqual(int(after[-1]["env_steps"]), budget)
+
+    def test_a_run_and_its_restarts_execute_the_binaries_it_started_with(self):
+        # The binaries in a folder of the test's own (IMCA_BIN), so the test
+        # can "rebuild" them mid-run: the learner's becomes a program that
+        # exits 7 at once. The learner then killed is restarted from the
+        # run's copy (RUN/bin) and the run goes on to its budget.
+        with tempfile.TemporaryDirectory() as tmp:
+            build = os.path.join(tmp, "bin")
+            os.makedirs(build)
+            for program in binaries.PROGRAMS + ("imca_env",):
+                shutil.copy2(binaries.path(program), build)
+            env = binaries.module_env(dict(os.environ, IMCA_BIN=build))
+            out = os.path.join(tmp, "run")
+            proc = subprocess.Popen(LAUNCH + ["--steps", "40000", "--out", out] + SMALL, env=env,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            metrics = os.path.join(out, "metrics.csv")
+            deadline = time.time() + 120
+            while time.time() < deadline and not (os.path.exists(metrics) and os.path.getsize(metrics) > 200):
+                time.sleep(0.2)
+            with open(os.path.join(out, "config.json")) as f:
+                pinned = json.load(f)["binaries"]
+            for program in binaries.PROGRAMS + ("imca_env",):
+                with open(os.path.join(build, program), "rb") as f:
+                    self.assertEqual(pinned[program], hashlib.file_digest(f, "sha256").hexdigest(), program)
+            learner = supervisor.run_processes(out)["learner"]
+            self.assertEqual(os.readlink(f"/proc/{learner}/exe"), os.path.join(out, "bin", "learner"))
+
+            broken = os.path.join(build, "learner")
+            os.remove(broken)  # As a linker does: a new file in its place.
+            with open(broken, "w") as f:
+                f.write("#!/bin/sh\nexit 7\n")
+            os.chmod(broken, 0o755)
+            os.kill(learner, signal.SIGKILL)
+
+            _, err = proc.communicate(timeout=240)
+            self.assertEqual(proc.returncode, 0, err)
+            with open(os.path.join(out, "summary.json")) as f:
+                summary = json.load(f)
+            self.assertEqual({name: n for name, n in summary["restarts"].items() if n}, {"learner": 1})
+            self.assertGreaterEqual(summary["env_steps"], 40000)
+            self.assertEqual(summary["binaries"], pinned)
+            self.assertFalse(os.path.exists(os.path.join(out, "bin")), "the run's copy goes when it ends")
 
 
 if __name__ == "__main__":

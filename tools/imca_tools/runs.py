@@ -131,6 +131,8 @@ def write_summary(run_dir, config, rows, interrupted):
         # Restarts of each process by the supervisor (logs/restarts.csv says why).
         "restarts": config.get("restarts", {}),
         "kernels": kernels(run_dir),
+        # {program: sha256} of the binaries the run executed (train.pin_binaries).
+        "binaries": config.get("binaries", {}),
     }
     write_json_atomically(os.path.join(run_dir, "summary.json"), summary)
     return summary

@@ -13,7 +13,8 @@ one included (checkpoints are also taken every --checkpoint-seconds, so
 which ones a run keeps depends on time). Prints a sha256 per file and run,
 and exits 1 on any difference. Runs whose servers ran other CPU kernels
 (summary.json's or the status files' "kernels") are not expected to match:
-it says so first.
+it says so first, as it says when they ran other builds of a program
+(config.json's "binaries").
 """
 import csv
 import hashlib
@@ -118,6 +119,10 @@ def main(argv=None):
     if any(ran[0][server] != ran[1][server] for server in ran[0].keys() & ran[1].keys()):
         print(f"imca same_run: the runs ran other CPU kernels ({ran[0]} against {ran[1]}); a deterministic "
               "run replays only on the same (docs/learner.md, \"Deterministic runs\")")
+    built = [(runs.read_json(os.path.join(run, "config.json")) or {}).get("binaries") or {} for run in argv]
+    if other := sorted(p for p in built[0].keys() & built[1].keys() if built[0][p] != built[1][p]):
+        print(f"imca same_run: the runs ran other builds of {', '.join(other)} (config.json's binaries); a change "
+              "of code may change the numbers")
     for name, x, y in rows:
         print(f"{'same' if x == y else 'DIFFERENT'}  {name}  {x or '(missing)'}  {y or '(missing)'}")
     return 0 if same else 1

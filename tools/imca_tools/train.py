@@ -6,8 +6,10 @@ Ctrl-C stops every process in order (actors, learner, reward server) and still
 leaves a valid run folder.
 """
 import datetime
+import hashlib
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -49,13 +51,39 @@ def plot(run_dir, rows, title):
     plt.close(fig)
 
 
-def episode_gif(run_dir, scenario_flags, seed):
+# The programs a run executes.
+RUN_PROGRAMS = binaries.PROGRAMS + ("imca_env",)
+
+
+def pin_binaries(run_dir):
+    """Copies the run's programs from BIN into RUN/bin (each file whole or
+    not at all) and returns ({program: its sha256}, RUN/bin). The run starts,
+    and the supervisor restarts, every service from there: a build that
+    relinks build/bin while the run goes on changes nothing in it. RUN/bin
+    is removed when the run ends (a resume pins the build of its own start)."""
+    pinned = os.path.join(run_dir, "bin")
+    os.makedirs(pinned, exist_ok=True)
+    digests = {}
+    for program in RUN_PROGRAMS:
+        source = os.path.join(BIN, program)
+        target = os.path.join(pinned, program)
+        try:
+            shutil.copy2(source, target + ".tmp")
+        except OSError as error:
+            raise LaunchError(f"cannot copy {source} into the run folder: {error.strerror}") from None
+        with open(target + ".tmp", "rb") as f:
+            digests[program] = hashlib.file_digest(f, "sha256").hexdigest()
+        os.replace(target + ".tmp", target)
+    return digests, pinned
+
+
+def episode_gif(bin_dir, run_dir, scenario_flags, seed):
     """One episode of the final policy as episode.gif (best effort: a run
     stopped before its first checkpoint has no policy.pb)."""
     policy = os.path.join(run_dir, "policy.pb")
     if not os.path.exists(policy):
         return
-    r = subprocess.run([os.path.join(BIN, "imca_env"), "rollout", *scenario_flags, f"--policy={policy}",
+    r = subprocess.run([os.path.join(bin_dir, "imca_env"), "rollout", *scenario_flags, f"--policy={policy}",
                         f"--seed={seed}", "--json", f"--gif={os.path.join(run_dir, 'episode.gif')}"],
                        capture_output=True, text=True)
     if r.returncode != 0:
@@ -117,6 +145,7 @@ def run(args):
         raise LaunchError(f"--out: '{run_dir}' already holds a run (use --resume to continue it)")
     flags, config = plan(args)  # Nothing is made or started for a configuration the binaries refuse.
     os.makedirs(run_dir, exist_ok=True)
+    config["binaries"], bin_dir = pin_binaries(run_dir)
     runs.write_json_atomically(os.path.join(run_dir, "config.json"), config)
     scenario_flags = flags["imca_env"]
     server_tls, actor_tls = secure_flags(run_dir, args) if args.secure else ([], lambda i: [])
@@ -139,7 +168,7 @@ def run(args):
         # reconnect there) and from its saved state.
         reward_port = []
         rs = services.start("reward_server", [
-            os.path.join(BIN, "reward_server"), f"--port_file={reward_port_file}", *flags["reward_server"],
+            os.path.join(bin_dir, "reward_server"), f"--port_file={reward_port_file}", *flags["reward_server"],
             f"--snapshot={os.path.join(run_dir, 'reward_snapshot.bin')}", *server_tls, *metrics_flag("reward_server"),
             f"--listen=127.0.0.1:{args.reward_port}"],
             restart_args=lambda: [f"--listen=127.0.0.1:{reward_port[0]}"],
@@ -147,7 +176,7 @@ def run(args):
         reward_port.append(services.wait_port("reward_server", rs, reward_port_file))
         learner_port = []
         ln = services.start("learner", [
-            os.path.join(BIN, "learner"), f"--port_file={learner_port_file}", *flags["learner"],
+            os.path.join(bin_dir, "learner"), f"--port_file={learner_port_file}", *flags["learner"],
             f"--run_dir={run_dir}", f"--trained_log={os.path.join(run_dir, 'logs', 'trained_unrolls.csv')}",
             # Stopped by a signal it did not get from us (exit 143, not 0):
             # restarted, not taken for finished.
@@ -164,7 +193,7 @@ def run(args):
             # A restarted actor (same id, new incarnation) draws other
             # episodes than the dead one: its seed moves with the restart.
             services.start(name, [
-                os.path.join(BIN, "actor"), f"--learner=127.0.0.1:{learner_port[0]}",
+                os.path.join(bin_dir, "actor"), f"--learner=127.0.0.1:{learner_port[0]}",
                 f"--reward_server=127.0.0.1:{reward_port[0]}", *flags["actor"],
                 f"--actor_id={name}", "--signal_exit_code=143",
                 # Its own wait for an ack gives up before the supervisor's.
@@ -210,8 +239,9 @@ def run(args):
             if rows:
                 plot(run_dir, rows, f"{args.scenario} / {args.reward} / credit={args.credit} / "
                                     f"permutation={args.permutation} / seed={args.seed}")
-            episode_gif(run_dir, scenario_flags, args.seed)
+            episode_gif(bin_dir, run_dir, scenario_flags, args.seed)
         finally:
+            shutil.rmtree(bin_dir, ignore_errors=True)
             runs.write_summary(run_dir, config, rows, interrupted)
     if not args.quiet:
         print(file=sys.stderr)
