@@ -199,11 +199,20 @@ class ExperimentRunTest(unittest.TestCase):
             last = r.stderr.strip().splitlines()[-1]
             # Whichever server says first (the reward server starts first).
             self.assertRegex(last, re.escape(second) + "'s (learner|reward_server) runs " + re.escape(
-                f"'aten=avx2 openblas=Haswell' where the grid's finished cells ran 'aten=default openblas=Prescott' "
-                f"({first})"))
+                f"'aten=avx2 openblas=Haswell' where the grid's cells run 'aten=default openblas=Prescott' "
+                f"(set by {first})"))
             self.assertIn("OPENBLAS_CORETYPE", last)
             self.assertIsNone(experiment.finished(os.path.join(out, "cells", second), dict(cell, seed=2)),
                               "the refused cell must not finish")
+            # The first cell to name its kernels set the grid's; --status shows why the cell stopped.
+            with open(os.path.join(out, "kernels.json")) as f:
+                self.assertEqual(json.load(f)["cell"], first)
+            r = subprocess.run(EXPERIMENT + ["--status", out], capture_output=True, text=True, timeout=60)
+            self.assertIn("runs 'aten=avx2 openblas=Haswell'", r.stdout + r.stderr)
+            # --only runs the one cell, against the whole grid's kernels.
+            r = subprocess.run(argv + ["--only", second], capture_output=True, text=True, timeout=300, env=haswell)
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertIn(f"(set by {first})", r.stderr.strip().splitlines()[-1])
 
             r = subprocess.run(argv, capture_output=True, text=True, timeout=300, env=prescott)
             self.assertEqual(r.returncode, 0, r.stderr)

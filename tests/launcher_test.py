@@ -13,7 +13,7 @@ import time
 import unittest
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from imca_tools import binaries, options, plan, runs, supervisor
+from imca_tools import binaries, options, plan, runs, supervisor, train
 
 LAUNCH = binaries.module_argv("train")
 SMALL = ["--actors", "2", "--envs-per-actor", "8", "--unroll-length", "32", "--batch-steps", "1024", "--quiet"]
@@ -319,6 +319,28 @@ class LauncherRunTest(unittest.TestCase):
             self.assertGreaterEqual(summary["env_steps"], 40000)
             self.assertEqual(summary["binaries"], pinned)
             self.assertFalse(os.path.exists(os.path.join(out, "bin")), "the run's copy goes when it ends")
+
+            # Resumed on another build (imca_env rebuilt): config.json keeps both.
+            shutil.copy2(binaries.path("learner"), build)
+            with open(os.path.join(build, "imca_env"), "ab") as f:
+                f.write(b"\0")
+            r = subprocess.run(LAUNCH + ["--resume", out, "--steps", str(summary["env_steps"] + 4096), "--quiet"],
+                               env=env, capture_output=True, text=True, timeout=240)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(out, "config.json")) as f:
+                config = json.load(f)
+            self.assertEqual(config["binaries_earlier"], [pinned])
+            self.assertNotEqual(config["binaries"]["imca_env"], pinned["imca_env"])
+            self.assertEqual(config["binaries"]["learner"], pinned["learner"])
+
+    def test_binaries_that_change_while_a_run_starts_are_refused(self):
+        # The flags were checked by one build and another was copied: one
+        # line, and nothing of the copy left.
+        with tempfile.TemporaryDirectory() as tmp:
+            expected = dict(train.binary_digests(binaries.BIN), learner="0" * 64)
+            with self.assertRaisesRegex(binaries.LaunchError, "changed while the run started"):
+                train.pin_binaries(tmp, expected)
+            self.assertEqual(os.listdir(tmp), [])
 
 
 if __name__ == "__main__":

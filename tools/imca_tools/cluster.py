@@ -150,23 +150,23 @@ def run_cell(queue_file, index, out):
             print(f"imca experiment: cell {cell_id(cell)} is already finished ({where})", flush=True)
             return 0
         print(f"imca experiment: cell {cell_id(cell)} starts ({where}); log {run_dir}/train.log", flush=True)
-        # The grid's kernels before this cell starts: its own unfinished
-        # folder is emptied, and its status files then are this run's.
-        reference = experiment.grid_kernels(grid_cells(out), out) if experiment.deterministic(cell) else {}
         proc = experiment.start_cell(cell, run_dir)
         stop = lambda *_: proc.poll() is None and proc.send_signal(signal.SIGTERM)
         signal.signal(signal.SIGTERM, stop)
         signal.signal(signal.SIGINT, stop)
         conflict = None
-        while reference and proc.poll() is None:  # Until both servers have named their kernels.
-            if conflict := experiment.kernels_conflict(reference, run_dir):
+        # A deterministic cell runs on the grid's kernels (experiment.check_kernels),
+        # checked until its servers have all named theirs.
+        while experiment.deterministic(cell) and proc.poll() is None:
+            if conflict := experiment.check_kernels(out, cell, run_dir):
                 stop()
                 break
-            if set(runs.kernels(run_dir)) == set(runs.KERNEL_SERVERS):
+            if experiment.kernels_settled(run_dir):
                 break
             time.sleep(0.5)
         code = proc.wait()
     if conflict:
+        experiment.note_refusal(run_dir, conflict)
         print(f"imca experiment: {conflict} ({where})", flush=True)
         return EXIT_REFUSED  # The node's CPU kernels: a retry on it would be refused again.
     summary = experiment.finished(run_dir, cell)
@@ -177,11 +177,6 @@ def run_cell(queue_file, index, out):
         return 1
     print(f"imca experiment: cell {cell_id(cell)} finished: success {summary['final_success_rate']:.0%}", flush=True)
     return 0
-
-
-def grid_cells(out):
-    """The cells of the grid OUT holds (grid.json, saved by the submitter)."""
-    return experiment.expand(experiment.load_saved_grid(out, "--out")["entries"], "grid.json")
 
 
 def task_command(queue_file, out):

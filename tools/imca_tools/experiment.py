@@ -332,7 +332,8 @@ def finished(run_dir, cell):
 
 
 # config.json keys that name where and how a run was launched, not what it trained.
-UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "map", "max_restarts", "stall_seconds",
+UNCOMPARED_SETTINGS = {"out", "resume", "quiet", "reward_port", "learner_port", "metrics_port", "secure",
+                       "map", "max_restarts", "stall_seconds",
                        "checkpoint_seconds", "snapshot_every", "given", "resolved", "actor_score_delays_ms",
                        "score_delays"}
 
@@ -392,34 +393,77 @@ def deterministic(cell):
     return bool(cell["flags"].get("deterministic"))
 
 
-def grid_kernels(cells, out):
-    """{server: (kernels, cell id)}: the CPU kernels the grid's finished
-    deterministic cells ran (summary.json "kernels"), the first cell that
-    names each server. Cells run before runs recorded their kernels name none."""
-    found = {}
-    for cell in cells:
-        if not deterministic(cell):
-            continue
-        summary = finished(cell_dir(out, cell), cell) or {}
-        for server, ran in (summary.get("kernels") or {}).items():
-            found.setdefault(server, (ran, cell_id(cell)))
-    return found
+def kernels_file(out):
+    return os.path.join(out, "kernels.json")
 
 
-def kernels_conflict(reference, run_dir):
-    """A one-line description of the first server whose kernels in the
-    running cell `run_dir` (its status files) differ from `reference`
-    (grid_kernels), or None (also while the cell's servers have not said).
-    A deterministic run replays only on the kernels it ran (docs/learner.md,
-    "Deterministic runs"): cells on other kernels would not sit in one table
-    with the finished ones as replays of them."""
-    for server, ran in sorted(runs.kernels(run_dir).items()):
-        if server in reference and reference[server][0] != ran:
-            want, where = reference[server]
-            return (f"{os.path.basename(run_dir)}'s {server} runs '{ran}' where the grid's finished cells ran "
-                    f"'{want}' ({where}); set OPENBLAS_CORETYPE / ATEN_CPU_CAPABILITY to theirs "
-                    "(docs/learner.md, 'Deterministic runs') or use another --out")
+def grid_kernels(out):
+    """({server: kernels}, cell id): the CPU kernels the grid in OUT runs its
+    deterministic cells on, and the cell that set them: OUT/kernels.json
+    (record_kernels), else the first finished deterministic cell's
+    summary.json that names them (grids from before kernels.json), else
+    ({}, None). Read from the cells' own files, so a cluster task whose OUT
+    holds no grid.json reads the same."""
+    recorded = runs.read_json(kernels_file(out))
+    if isinstance(recorded, dict) and isinstance(recorded.get("kernels"), dict):
+        return recorded["kernels"], recorded.get("cell")
+    cells = os.path.join(out, "cells")
+    for name in sorted(os.listdir(cells)) if os.path.isdir(cells) else []:
+        config = runs.read_json(os.path.join(cells, name, "config.json")) or {}
+        summary = runs.finished_summary(os.path.join(cells, name), config.get("steps", float("inf"))) or {}
+        if config.get("deterministic") and summary.get("kernels"):
+            return summary["kernels"], name
+    return {}, None
+
+
+def record_kernels(out, ran, cell):
+    """Makes `ran` ({server: kernels}, every server named) the grid's kernels
+    unless it has some already: OUT/kernels.json is created whole or not at
+    all, and of two processes (cluster tasks) the first wins."""
+    if grid_kernels(out)[0]:
+        return
+    tmp = f"{kernels_file(out)}.{os.getpid()}.tmp"
+    runs.write_json_atomically(tmp, {"kernels": ran, "cell": cell_id(cell)})
+    try:
+        os.link(tmp, kernels_file(out))  # Fails if it exists: the first writer wins.
+    except FileExistsError:
+        pass
+    finally:
+        os.remove(tmp)
+
+
+def check_kernels(out, cell, run_dir):
+    """For a running deterministic cell: None while all is well (its servers
+    have not all named their kernels yet, or they ran the grid's, which the
+    first cell to name them all sets), else a one-line description of the
+    first server that runs other kernels than the grid's (the caller stops
+    the cell, then note_refusal). A deterministic run
+    replays only on the kernels it ran (docs/learner.md, "Deterministic
+    runs"): cells on other kernels would sit in one table with the others as
+    if they were replays of one machine."""
+    ran = runs.kernels(run_dir)
+    if set(ran) == set(runs.KERNEL_SERVERS):
+        record_kernels(out, ran, cell)  # Compared below with the winner's, if another cell won.
+    reference, where = grid_kernels(out)
+    for server in sorted(ran.keys() & reference.keys()):
+        if ran[server] != reference[server]:
+            conflict = (f"{cell_id(cell)}'s {server} runs '{ran[server]}' where the grid's cells run "
+                        f"'{reference[server]}' (set by {where}); set OPENBLAS_CORETYPE / ATEN_CPU_CAPABILITY to "
+                        f"theirs (docs/learner.md, 'Deterministic runs') or use another --out")
+            return conflict
     return None
+
+
+def note_refusal(run_dir, why):
+    """Appends why a cell was stopped to its train.log, once it has stopped:
+    its last line, which --status shows."""
+    with open(os.path.join(run_dir, "train.log"), "a") as log:
+        print(f"imca experiment: {why}", file=log)
+
+
+def kernels_settled(run_dir):
+    """Whether every server of a running cell has named its kernels."""
+    return set(runs.kernels(run_dir)) == set(runs.KERNEL_SERVERS)
 
 
 def default_jobs():
@@ -458,14 +502,13 @@ def run_cells(cells, out, jobs):
     """Runs the unfinished cells, `jobs` at a time. Returns (False if
     interrupted, cells failed). Raises ExperimentError, once the running cells
     are stopped, when a deterministic cell runs other CPU kernels than the
-    grid's (kernels_conflict)."""
+    grid's (check_kernels)."""
     todo = unfinished_cells(cells, out)
     done_before = len(cells) - len(todo)
     print(f"imca experiment: {len(cells)} cells, {done_before} already finished, {len(todo)} to run, "
           f"{jobs} at a time; results in {out}", file=sys.stderr, flush=True)
     running = []  # (cell, run_dir, Popen, start time, lock file)
-    reference = grid_kernels(cells, out)
-    unchecked = set()  # run folders of deterministic cells whose kernels are not yet compared
+    unchecked = set()  # run folders of deterministic cells whose kernels are not yet all compared
     refused = []
     stop = []
     old_int = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
@@ -487,15 +530,12 @@ def run_cells(cells, out, jobs):
             time.sleep(0.5)
             for entry in list(running):
                 cell, run_dir, proc, t0, lock = entry
-                if run_dir in unchecked:  # Until both servers have named their kernels.
-                    if conflict := kernels_conflict(reference, run_dir):
-                        refused.append(conflict)
+                if run_dir in unchecked:
+                    if conflict := check_kernels(out, cell, run_dir):
+                        refused.append((run_dir, conflict))
                         stop.append(1)
                         break
-                    ran = runs.kernels(run_dir)
-                    for server, kernels in ran.items():  # The first cells of a grid set its kernels.
-                        reference.setdefault(server, (kernels, cell_id(cell)))
-                    if set(ran) == set(runs.KERNEL_SERVERS):
+                    if kernels_settled(run_dir):
                         unchecked.discard(run_dir)
                 if proc.poll() is None:
                     continue
@@ -530,7 +570,8 @@ def run_cells(cells, out, jobs):
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
     if refused:
-        raise ExperimentError(refused[0])
+        note_refusal(*refused[0])
+        raise ExperimentError(refused[0][1])
     for cid, line in failures:
         print(f"imca experiment: cell {cid} failed: {line}", file=sys.stderr)
     return not stop, len(failures)

@@ -131,8 +131,10 @@ def write_summary(run_dir, config, rows, interrupted):
         # Restarts of each process by the supervisor (logs/restarts.csv says why).
         "restarts": config.get("restarts", {}),
         "kernels": kernels(run_dir),
-        # {program: sha256} of the binaries the run executed (train.pin_binaries).
+        # {program: sha256} of the binaries the run executed (train.pin_binaries),
+        # and those of its parts before a resume on another build.
         "binaries": config.get("binaries", {}),
+        **({"binaries_earlier": config["binaries_earlier"]} if config.get("binaries_earlier") else {}),
     }
     write_json_atomically(os.path.join(run_dir, "summary.json"), summary)
     return summary

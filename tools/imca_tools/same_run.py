@@ -119,10 +119,15 @@ def main(argv=None):
     if any(ran[0][server] != ran[1][server] for server in ran[0].keys() & ran[1].keys()):
         print(f"imca same_run: the runs ran other CPU kernels ({ran[0]} against {ran[1]}); a deterministic "
               "run replays only on the same (docs/learner.md, \"Deterministic runs\")")
-    built = [(runs.read_json(os.path.join(run, "config.json")) or {}).get("binaries") or {} for run in argv]
+    configs = [runs.read_json(os.path.join(run, "config.json")) or {} for run in argv]
+    built = [config.get("binaries") or {} for config in configs]
     if other := sorted(p for p in built[0].keys() & built[1].keys() if built[0][p] != built[1][p]):
         print(f"imca same_run: the runs ran other builds of {', '.join(other)} (config.json's binaries); a change "
               "of code may change the numbers")
+    for run, config in zip(argv, configs):
+        if config.get("binaries_earlier"):
+            print(f"imca same_run: {run} was resumed on another build than it ran before (config.json's "
+                  "binaries_earlier)")
     for name, x, y in rows:
         print(f"{'same' if x == y else 'DIFFERENT'}  {name}  {x or '(missing)'}  {y or '(missing)'}")
     return 0 if same else 1

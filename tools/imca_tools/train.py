@@ -55,26 +55,61 @@ def plot(run_dir, rows, title):
 RUN_PROGRAMS = binaries.PROGRAMS + ("imca_env",)
 
 
-def pin_binaries(run_dir):
-    """Copies the run's programs from BIN into RUN/bin (each file whole or
-    not at all) and returns ({program: its sha256}, RUN/bin). The run starts,
-    and the supervisor restarts, every service from there: a build that
-    relinks build/bin while the run goes on changes nothing in it. RUN/bin
-    is removed when the run ends (a resume pins the build of its own start)."""
-    pinned = os.path.join(run_dir, "bin")
-    os.makedirs(pinned, exist_ok=True)
+def binary_digests(directory):
+    """{program: sha256} of the run's programs in `directory`."""
     digests = {}
     for program in RUN_PROGRAMS:
-        source = os.path.join(BIN, program)
-        target = os.path.join(pinned, program)
         try:
-            shutil.copy2(source, target + ".tmp")
+            with open(os.path.join(directory, program), "rb") as f:
+                digests[program] = hashlib.file_digest(f, "sha256").hexdigest()
         except OSError as error:
-            raise LaunchError(f"cannot copy {source} into the run folder: {error.strerror}") from None
-        with open(target + ".tmp", "rb") as f:
-            digests[program] = hashlib.file_digest(f, "sha256").hexdigest()
-        os.replace(target + ".tmp", target)
-    return digests, pinned
+            raise LaunchError(f"cannot read {os.path.join(directory, program)} ({error.strerror}); "
+                              "build first: ./imca build") from None
+    return digests
+
+
+def pin_binaries(run_dir, expected):
+    """Copies the run's programs from BIN into RUN/bin and returns RUN/bin:
+    the run starts, and the supervisor restarts, every service from there,
+    so a build that relinks build/bin while the run goes on changes nothing
+    in it. `expected` ({program: sha256}, taken before the binaries checked
+    the run's flags) must be what was copied: else build/bin changed
+    meanwhile and LaunchError says so. On a run folder that cannot hold
+    programs (a noexec mount) the run executes BIN itself, with a warning.
+    RUN/bin goes when the run ends (train.run); a launcher killed by
+    SIGKILL leaves it, and the next start replaces it."""
+    pinned = os.path.join(run_dir, "bin")
+    try:
+        os.makedirs(pinned, exist_ok=True)
+        for program in RUN_PROGRAMS:
+            target = os.path.join(pinned, program)
+            shutil.copy2(os.path.join(BIN, program), target + ".tmp")
+            os.replace(target + ".tmp", target)
+        if binary_digests(pinned) != expected:
+            raise LaunchError(f"{BIN} changed while the run started (a build running?); start it again")
+        if not os.access(os.path.join(pinned, "learner"), os.X_OK):
+            shutil.rmtree(pinned, ignore_errors=True)
+            print(f"imca train: {run_dir} cannot hold programs (a noexec mount?): the run executes {BIN}, and a "
+                  "rebuild during the run would reach its restarts", file=sys.stderr)
+            return BIN
+        return pinned
+    except OSError as error:
+        shutil.rmtree(pinned, ignore_errors=True)
+        raise LaunchError(f"cannot copy the binaries into {pinned}: {error.strerror}") from None
+    except BaseException:
+        shutil.rmtree(pinned, ignore_errors=True)
+        raise
+
+
+def builds_before(run_dir, built):
+    """A resumed run's earlier builds ({program: sha256} each, oldest first)
+    other than `built`: config.json's binaries_earlier, and its binaries if
+    they differ (a run resumed on another build ran two)."""
+    saved = runs.read_json(os.path.join(run_dir, "config.json")) or {}
+    earlier = list(saved.get("binaries_earlier") or [])
+    if saved.get("binaries") and saved["binaries"] != built:
+        earlier.append(saved["binaries"])
+    return earlier
 
 
 def episode_gif(bin_dir, run_dir, scenario_flags, seed):
@@ -143,17 +178,27 @@ def run(args):
     run_dir = os.path.abspath(run_dir)
     if os.path.exists(os.path.join(run_dir, "metrics.csv")) and not args.resume:
         raise LaunchError(f"--out: '{run_dir}' already holds a run (use --resume to continue it)")
+    built = binary_digests(BIN)  # The build whose binaries check the flags.
     flags, config = plan(args)  # Nothing is made or started for a configuration the binaries refuse.
     os.makedirs(run_dir, exist_ok=True)
-    config["binaries"], bin_dir = pin_binaries(run_dir)
-    runs.write_json_atomically(os.path.join(run_dir, "config.json"), config)
-    scenario_flags = flags["imca_env"]
-    server_tls, actor_tls = secure_flags(run_dir, args) if args.secure else ([], lambda i: [])
-    ports = metrics_ports(args)
-    metrics_flag = lambda name: [f"--metrics_listen=127.0.0.1:{ports[name]}"] if ports else []
-    if ports:
-        write_prometheus_config(run_dir, ports)
-    services = Services(run_dir, max_restarts=args.max_restarts, stall_seconds=args.stall_seconds)
+    bin_dir = pin_binaries(run_dir, built)
+    try:
+        config["binaries"] = built
+        earlier = builds_before(run_dir, built) if args.resume else []
+        if earlier:
+            config["binaries_earlier"] = earlier
+        runs.write_json_atomically(os.path.join(run_dir, "config.json"), config)
+        scenario_flags = flags["imca_env"]
+        server_tls, actor_tls = secure_flags(run_dir, args) if args.secure else ([], lambda i: [])
+        ports = metrics_ports(args)
+        metrics_flag = lambda name: [f"--metrics_listen=127.0.0.1:{ports[name]}"] if ports else []
+        if ports:
+            write_prometheus_config(run_dir, ports)
+        services = Services(run_dir, max_restarts=args.max_restarts, stall_seconds=args.stall_seconds)
+    except BaseException:
+        if bin_dir != BIN:
+            shutil.rmtree(bin_dir, ignore_errors=True)
+        raise
     rows = []
     interrupted = False
     stop_requested = []
@@ -241,7 +286,8 @@ def run(args):
                                     f"permutation={args.permutation} / seed={args.seed}")
             episode_gif(bin_dir, run_dir, scenario_flags, args.seed)
         finally:
-            shutil.rmtree(bin_dir, ignore_errors=True)
+            if bin_dir != BIN:
+                shutil.rmtree(bin_dir, ignore_errors=True)
             runs.write_summary(run_dir, config, rows, interrupted)
     if not args.quiet:
         print(file=sys.stderr)
