@@ -158,10 +158,10 @@ def run_cell(queue_file, index, out):
         # A deterministic cell runs on the grid's kernels (experiment.check_kernels),
         # checked until its servers have all named theirs.
         while experiment.deterministic(cell) and proc.poll() is None:
-            if conflict := experiment.check_kernels(out, cell, run_dir):
+            conflict, settled = experiment.check_kernels(out, cell, run_dir)
+            if conflict:
                 stop()
-                break
-            if experiment.kernels_settled(run_dir):
+            if conflict or settled:
                 break
             time.sleep(0.5)
         code = proc.wait()

@@ -418,10 +418,8 @@ def grid_kernels(out):
 
 def record_kernels(out, ran, cell):
     """Makes `ran` ({server: kernels}, every server named) the grid's kernels
-    unless it has some already: OUT/kernels.json is created whole or not at
-    all, and of two processes (cluster tasks) the first wins."""
-    if grid_kernels(out)[0]:
-        return
+    unless OUT/kernels.json exists: it is created whole or not at all, and of
+    two processes (cluster tasks) the first wins."""
     tmp = f"{kernels_file(out)}.{os.getpid()}.tmp"
     runs.write_json_atomically(tmp, {"kernels": ran, "cell": cell_id(cell)})
     try:
@@ -433,25 +431,26 @@ def record_kernels(out, ran, cell):
 
 
 def check_kernels(out, cell, run_dir):
-    """For a running deterministic cell: None while all is well (its servers
-    have not all named their kernels yet, or they ran the grid's, which the
-    first cell to name them all sets), else a one-line description of the
-    first server that runs other kernels than the grid's (the caller stops
-    the cell, then note_refusal). A deterministic run
+    """(conflict, settled) for a running deterministic cell: settled once its
+    servers have all named their CPU kernels (the first cell to do so in a
+    grid without kernels sets the grid's); conflict, a one-line description
+    of the first server that runs other kernels than the grid's, else None
+    (the caller stops the cell, then note_refusal). A deterministic run
     replays only on the kernels it ran (docs/learner.md, "Deterministic
     runs"): cells on other kernels would sit in one table with the others as
     if they were replays of one machine."""
     ran = runs.kernels(run_dir)
-    if set(ran) == set(runs.KERNEL_SERVERS):
-        record_kernels(out, ran, cell)  # Compared below with the winner's, if another cell won.
+    settled = set(ran) == set(runs.KERNEL_SERVERS)
     reference, where = grid_kernels(out)
+    if not reference and settled:
+        record_kernels(out, ran, cell)
+        reference, where = grid_kernels(out)  # This cell's, or another's that won.
     for server in sorted(ran.keys() & reference.keys()):
         if ran[server] != reference[server]:
-            conflict = (f"{cell_id(cell)}'s {server} runs '{ran[server]}' where the grid's cells run "
-                        f"'{reference[server]}' (set by {where}); set OPENBLAS_CORETYPE / ATEN_CPU_CAPABILITY to "
-                        f"theirs (docs/learner.md, 'Deterministic runs') or use another --out")
-            return conflict
-    return None
+            return (f"{cell_id(cell)}'s {server} runs '{ran[server]}' where the grid's cells run "
+                    f"'{reference[server]}' (set by {where}); set OPENBLAS_CORETYPE / ATEN_CPU_CAPABILITY to "
+                    f"theirs (docs/learner.md, 'Deterministic runs') or use another --out"), settled
+    return None, settled
 
 
 def note_refusal(run_dir, why):
@@ -459,11 +458,6 @@ def note_refusal(run_dir, why):
     its last line, which --status shows."""
     with open(os.path.join(run_dir, "train.log"), "a") as log:
         print(f"imca experiment: {why}", file=log)
-
-
-def kernels_settled(run_dir):
-    """Whether every server of a running cell has named its kernels."""
-    return set(runs.kernels(run_dir)) == set(runs.KERNEL_SERVERS)
 
 
 def default_jobs():
@@ -531,11 +525,12 @@ def run_cells(cells, out, jobs):
             for entry in list(running):
                 cell, run_dir, proc, t0, lock = entry
                 if run_dir in unchecked:
-                    if conflict := check_kernels(out, cell, run_dir):
+                    conflict, settled = check_kernels(out, cell, run_dir)
+                    if conflict:
                         refused.append((run_dir, conflict))
                         stop.append(1)
                         break
-                    if kernels_settled(run_dir):
+                    if settled:
                         unchecked.discard(run_dir)
                 if proc.poll() is None:
                     continue

@@ -93,12 +93,17 @@ def pin_binaries(run_dir, expected):
                   "rebuild during the run would reach its restarts", file=sys.stderr)
             return BIN
         return pinned
-    except OSError as error:
+    except BaseException as error:
         shutil.rmtree(pinned, ignore_errors=True)
-        raise LaunchError(f"cannot copy the binaries into {pinned}: {error.strerror}") from None
-    except BaseException:
-        shutil.rmtree(pinned, ignore_errors=True)
+        if isinstance(error, OSError):
+            raise LaunchError(f"cannot copy the binaries into {pinned}: {error.strerror}") from None
         raise
+
+
+def unpin_binaries(bin_dir):
+    """Removes a run's copy of the binaries (pin_binaries' RUN/bin; never BIN)."""
+    if bin_dir != BIN:
+        shutil.rmtree(bin_dir, ignore_errors=True)
 
 
 def builds_before(run_dir, built):
@@ -196,8 +201,7 @@ def run(args):
             write_prometheus_config(run_dir, ports)
         services = Services(run_dir, max_restarts=args.max_restarts, stall_seconds=args.stall_seconds)
     except BaseException:
-        if bin_dir != BIN:
-            shutil.rmtree(bin_dir, ignore_errors=True)
+        unpin_binaries(bin_dir)
         raise
     rows = []
     interrupted = False
@@ -286,8 +290,7 @@ def run(args):
                                     f"permutation={args.permutation} / seed={args.seed}")
             episode_gif(bin_dir, run_dir, scenario_flags, args.seed)
         finally:
-            if bin_dir != BIN:
-                shutil.rmtree(bin_dir, ignore_errors=True)
+            unpin_binaries(bin_dir)
             runs.write_summary(run_dir, config, rows, interrupted)
     if not args.quiet:
         print(file=sys.stderr)
