@@ -19,6 +19,7 @@
 #include "env/env.h"
 #include "google/protobuf/util/json_util.h"
 #include "gtest/gtest.h"
+#include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 #include "reward_server/make_scorer.h"
@@ -123,7 +124,7 @@ learner::LearnerConfig TestLearnerConfig() {
   learner::LearnerConfig config;
   config.checkpoint_every = 0;
   config.checkpoint_seconds = 0;
-  config.ppo.hidden = 16;
+  learner::MutableOptions<learner::MappoOptions>(&config).ppo.hidden = 16;
   return config;
 }
 

@@ -9,6 +9,7 @@
 #include "absl/synchronization/mutex.h"
 #include "env/featurizer.h"
 #include "gtest/gtest.h"
+#include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 #include "rpc/grpc_util.h"
 
@@ -64,7 +65,7 @@ class PolicyClientTest : public ::testing::Test {
     ASSERT_TRUE(scenario.ok());
     scenario_ = *std::move(scenario);
     learner::LearnerConfig config;
-    config.ppo.hidden = 8;
+    learner::MutableOptions<learner::MappoOptions>(&config).ppo.hidden = 8;
     config.checkpoint_every = 0;
     config.checkpoint_seconds = 0;
     auto learner = learner::Learner::Create(scenario_.get(), config);

@@ -7,6 +7,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
 
 namespace imca {
 
@@ -35,6 +36,19 @@ absl::StatusOr<E> ParseName(const std::string& text, const EnumName<E> (&names)[
     absl::StrAppend(&choices, i == 0 ? "" : (i + 1 == N ? " or " : ", "), names[i].name);
   }
   return absl::InvalidArgumentError(absl::StrCat("'", text, "' is not ", choices));
+}
+
+// AbslParseFlag of an enum by its name table: false with `error` naming the
+// accepted values.
+template <typename E, size_t N>
+bool ParseFlagName(absl::string_view text, const EnumName<E> (&names)[N], E* value, std::string* error) {
+  absl::StatusOr<E> parsed = ParseName(std::string(text), names);
+  if (!parsed.ok()) {
+    *error = std::string(parsed.status().message());
+    return false;
+  }
+  *value = *parsed;
+  return true;
 }
 
 // Every name of `names`, in order (what `--list` prints).

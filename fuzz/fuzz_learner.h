@@ -5,6 +5,7 @@
 
 #include "env/env.h"
 #include "fuzz/fuzz_check.h"
+#include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 
 namespace imca::fuzz {
@@ -23,7 +24,7 @@ inline learner::Learner* FuzzLearner(int batch_steps = learner::LearnerConfig{}.
   config.budget_steps = int64_t{1} << 50;
   config.checkpoint_every = 0;
   config.checkpoint_seconds = 0;
-  config.ppo.hidden = 8;
+  learner::MutableOptions<learner::MappoOptions>(&config).ppo.hidden = 8;
   auto created = learner::Learner::Create(scenario, config);
   FUZZ_CHECK(created.ok());
   return created->release();

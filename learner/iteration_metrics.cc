@@ -2,23 +2,28 @@
 
 #include <cstdio>
 #include <limits>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "learner/algorithms/registry.h"
 
 namespace imca::learner {
 
 using R = IterationRecord;
 
-const std::vector<Column>& IterationColumns() {
-  static const std::vector<Column> columns = {
+namespace {
+
+// Every algorithm's columns (each algorithm's own are in its registry entry).
+std::vector<Column> CommonColumns() {
+  return {
       {"iteration", "%.0f", 1, "Training iterations completed.", &R::iteration, Export::kCumulative,
        "imca_learner_iterations_total"},
       {"env_steps", "%.0f", 1, "Joint environment steps trained on.", &R::env_steps, Export::kCumulative,
        "imca_learner_env_steps_total"},
       {"wall_seconds", "%.3f", 1, "Seconds of training, earlier runs of a resumed one included.", &R::wall_seconds,
-       Export::kCsvOnly, nullptr, nullptr, true},
+       Export::kCsvOnly, nullptr, "", true},
       {"env_steps_per_sec", "%.1f", 1, "env_steps / wall_seconds.",
-       &R::env_steps_per_sec, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::env_steps_per_sec, Export::kCsvOnly, nullptr, "", true},
       {"success_rate", "%.4f", 1, "Success rate over the recent evaluation episodes (window success_episodes).",
        &R::success_rate, Export::kGauge, "imca_learner_eval_success_ratio"},
       {"train_success_rate", "%.4f", 1, "Success rate over the recent training episodes.", &R::train_success_rate,
@@ -35,24 +40,24 @@ const std::vector<Column>& IterationColumns() {
        &R::policy_lag, Export::kCsvOnly, nullptr},
       {"dropped_stale", "%.0f", 1, "Unrolls dropped as stale so far.", &R::dropped_stale, Export::kCsvOnly, nullptr},
       {"ms_wait", "%.2f", 1e3, "Milliseconds the iteration waited for unrolls.",
-       &R::wait, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::wait, Export::kCsvOnly, nullptr, "", true},
       {"ms_featurise", "%.2f", 1e3, "Milliseconds of featurising the batch (on the pushing threads).", &R::featurise,
-       Export::kCsvOnly, nullptr, nullptr, true},
+       Export::kCsvOnly, nullptr, "", true},
       {"ms_values", "%.2f", 1e3, "Milliseconds of value predictions.",
-       &R::values, Export::kCsvOnly, nullptr, nullptr, true},
-      {"ms_gae", "%.2f", 1e3, "Milliseconds of GAE.", &R::gae, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::values, Export::kCsvOnly, nullptr, "", true},
+      {"ms_gae", "%.2f", 1e3, "Milliseconds of GAE.", &R::gae, Export::kCsvOnly, nullptr, "", true},
       {"ms_copy", "%.2f", 1e3, "Milliseconds of copying into the batch.",
-       &R::copy, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::copy, Export::kCsvOnly, nullptr, "", true},
       {"ms_prepare", "%.2f", 1e3, "Milliseconds of preparing minibatches.",
-       &R::prepare, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::prepare, Export::kCsvOnly, nullptr, "", true},
       {"ms_forward", "%.2f", 1e3, "Milliseconds of forward passes.",
-       &R::forward, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::forward, Export::kCsvOnly, nullptr, "", true},
       {"ms_backward", "%.2f", 1e3, "Milliseconds of backward passes.",
-       &R::backward, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::backward, Export::kCsvOnly, nullptr, "", true},
       {"ms_optimizer", "%.2f", 1e3, "Milliseconds of optimiser steps.",
-       &R::optimizer, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::optimizer, Export::kCsvOnly, nullptr, "", true},
       {"ms_publish", "%.2f", 1e3, "Milliseconds of publishing the policy.",
-       &R::publish, Export::kCsvOnly, nullptr, nullptr, true},
+       &R::publish, Export::kCsvOnly, nullptr, "", true},
       {"global_reward", "%.6g", 1, "Mean global intrinsic reward R_i per transition.", &R::global_reward,
        Export::kGauge, "imca_learner_global_reward"},
       {"contribution_abs", "%.6g", 1, "Mean |r^a| (or d^a) per agent-step.", &R::contribution_abs, Export::kCsvOnly,
@@ -65,52 +70,26 @@ const std::vector<Column>& IterationColumns() {
        "imca_learner_entropy_nats"},
       {"updates", "%.0f", 1, "Gradient steps of the iteration.", &R::updates, Export::kIncrement,
        "imca_learner_gradient_steps_total"},
-
-      // MAPPO's own (learner/algorithms/mappo/).
-      {"policy_loss", "%.6g", 1, "PPO's clipped surrogate loss of the iteration.", nullptr, Export::kGauge,
-       "imca_learner_policy_loss", "mappo"},
-      {"value_loss", "%.6g", 1, "The critic's squared error of the iteration (summed over its heads).", nullptr,
-       Export::kGauge, "imca_learner_value_loss", "mappo"},
-      {"approx_kl", "%.6g", 1, "Approximate KL divergence of the update.", nullptr, Export::kGauge,
-       "imca_learner_approx_kl", "mappo"},
-      {"clip_fraction", "%.4f", 1, "Share of samples whose ratio was clipped.", nullptr, Export::kGauge,
-       "imca_learner_clip_fraction_ratio", "mappo"},
-      {"behaviour_kl", "%.6g", 1, "KL divergence of the behaviour policy from the proximal one.", nullptr,
-       Export::kGauge, "imca_learner_behaviour_kl", "mappo"},
-      {"voi_reward", "%.6g", 1, "EDTI's mean value-of-interaction reward (--edti).", nullptr, Export::kCsvOnly,
-       nullptr, "mappo"},
-
-      // MADDPG's own (learner/algorithms/maddpg/).
-      {"actor_loss", "%.6g", 1, "The actors' loss, -mean Q_i plus the logit regulariser, mean over the iteration's "
-       "gradient steps.", nullptr, Export::kGauge, "imca_learner_actor_loss", "maddpg"},
-      {"critic_loss", "%.6g", 1, "The critics' squared TD error, mean over the iteration's gradient steps.", nullptr,
-       Export::kGauge, "imca_learner_critic_loss", "maddpg"},
-      {"replay_size", "%.0f", 1, "Transitions in the replay buffer.", nullptr, Export::kGauge,
-       "imca_learner_replay_transitions", "maddpg"},
-
-      // CMAE's own (learner/algorithms/cmae/).
-      {"cmae_episodes", "%.0f", 1, "Episodes CMAE has finished (each chose a goal and refitted the tables).", nullptr,
-       Export::kGauge, "imca_learner_cmae_episodes", "cmae"},
-      {"cmae_exploit_weight", "%.4f", 1, "Weight of the exploitation tables in acting, episodes / --cmae_episodes.",
-       nullptr, Export::kGauge, "imca_learner_cmae_exploit_weight", "cmae"},
-      {"cmae_goals_reached", "%.4f", 1, "Share of the iteration's goals whose way in was in the replay.", nullptr,
-       Export::kCsvOnly, nullptr, "cmae"},
-      {"cmae_space_vars", "%.0f", 1, "Variables of the restricted space goals are chosen in.", nullptr,
-       Export::kGauge, "imca_learner_cmae_space_variables", "cmae"},
-      {"cmae_space_entropy", "%.6g", 1, "Normalised entropy of that space's counts.", nullptr, Export::kCsvOnly,
-       nullptr, "cmae"},
-      {"cmae_exploit_states", "%.0f", 1, "Joint states where agent 1's exploitation table is not all 0.", nullptr,
-       Export::kGauge, "imca_learner_cmae_exploit_states", "cmae"},
-      {"cmae_replay", "%.0f", 1, "Transitions in CMAE's replay.", nullptr, Export::kGauge,
-       "imca_learner_cmae_replay_transitions", "cmae"},
   };
-  return columns;
+}
+
+}  // namespace
+
+const std::vector<Column>& IterationColumns() {
+  static const std::vector<Column>* const kColumns = [] {
+    std::vector<Column> columns = CommonColumns();
+    for (const AlgorithmEntry& entry : Algorithms().entries()) {
+      columns.insert(columns.end(), entry.columns.begin(), entry.columns.end());
+    }
+    return new std::vector<Column>(std::move(columns));
+  }();
+  return *kColumns;
 }
 
 std::vector<Column> RunColumns(const std::string& algorithm) {
   std::vector<Column> run;
   for (const Column& c : IterationColumns()) {
-    if (c.algorithm == nullptr || algorithm == c.algorithm) run.push_back(c);
+    if (c.algorithm.empty() || algorithm == c.algorithm) run.push_back(c);
   }
   return run;
 }
@@ -118,7 +97,7 @@ std::vector<Column> RunColumns(const std::string& algorithm) {
 std::vector<std::string> AlgorithmColumnNames(const std::string& algorithm) {
   std::vector<std::string> names;
   for (const Column& c : IterationColumns()) {
-    if (c.algorithm != nullptr && algorithm == c.algorithm) names.push_back(c.name);
+    if (!c.algorithm.empty() && algorithm == c.algorithm) names.push_back(c.name);
   }
   return names;
 }

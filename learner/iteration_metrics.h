@@ -50,7 +50,9 @@ struct Column {
   double IterationRecord::*value;  // Null for an algorithm's own column.
   Export exported;
   const char* family;     // Prometheus name, if exported.
-  const char* algorithm = nullptr;  // --algo name of the one algorithm it belongs to, or null.
+  // --algo name of the one algorithm it belongs to (set by its registry
+  // entry), or empty.
+  std::string algorithm = "";
   // Measures time, not training: differs between runs that train alike
   // (what a deterministic run's comparison leaves out).
   bool wall_clock = false;

@@ -53,7 +53,7 @@ TEST(IterationMetricsTest, EachAlgorithmHasTheSharedColumnsAndItsOwn) {
   EXPECT_THAT(mappo, ::testing::Not(HasSubstr("actor_loss")));
   // Every column is shared or one algorithm's, and only a shared one reads
   // a member of the record.
-  for (const Column& c : IterationColumns()) EXPECT_EQ(c.algorithm == nullptr, c.value != nullptr) << c.name;
+  for (const Column& c : IterationColumns()) EXPECT_EQ(c.algorithm.empty(), c.value != nullptr) << c.name;
 }
 
 TEST(IterationMetricsTest, ExportedColumnsBecomeFamiliesWithTheirHelp) {

@@ -15,9 +15,7 @@
 #include "base/enum_names.h"
 #include "base/lap.h"
 #include "base/status_macros.h"
-#include "learner/algorithms/cmae/cmae.h"
-#include "learner/algorithms/maddpg/maddpg.h"
-#include "learner/algorithms/mappo/mappo.h"
+#include "learner/algorithms/registry.h"
 #include "nn/blas_kernels.h"
 #include "nn/threads.h"
 #include "protocol/policy_table.h"
@@ -46,60 +44,17 @@ double Mean(const std::deque<T>& values) {
 
 namespace {
 
-constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "state"},
-                                                       {CriticInput::kJointObs, "joint_obs"}};
 constexpr EnumName<TimeLimit> kTimeLimitNames[] = {{TimeLimit::kBootstrap, "bootstrap"},
                                                    {TimeLimit::kTerminal, "terminal"}};
-constexpr EnumName<Algo> kAlgoNames[] = {{Algo::kMappo, "mappo"}, {Algo::kMaddpg, "maddpg"}, {Algo::kCmae, "cmae"}};
-
-absl::StatusOr<std::unique_ptr<Algorithm>> MakeAlgorithm(const env::Scenario* scenario, const LearnerConfig& config) {
-  switch (config.algo) {
-    case Algo::kMappo: {
-      IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Mappo> mappo, Mappo::Create(scenario, config));
-      return std::unique_ptr<Algorithm>(std::move(mappo));
-    }
-    case Algo::kMaddpg: {
-      IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Maddpg> maddpg, Maddpg::Create(scenario, config));
-      return std::unique_ptr<Algorithm>(std::move(maddpg));
-    }
-    case Algo::kCmae: {
-      IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Cmae> cmae, Cmae::Create(scenario, config));
-      return std::unique_ptr<Algorithm>(std::move(cmae));
-    }
-  }
-  return absl::InvalidArgumentError("unknown algo");
-}
 
 }  // namespace
 
-std::string CriticInputName(CriticInput input) { return NameOf(input, kCriticInputNames); }
-absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name) { return ParseName(name, kCriticInputNames); }
 std::string TimeLimitName(TimeLimit limit) { return NameOf(limit, kTimeLimitNames); }
-absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name) { return ParseName(name, kTimeLimitNames); }
-std::string AlgoName(Algo algo) { return NameOf(algo, kAlgoNames); }
-std::vector<std::string> AlgoNames() { return Names(kAlgoNames); }
-std::vector<std::string> CriticInputNames() { return Names(kCriticInputNames); }
-std::vector<std::string> TimeLimitNames() { return Names(kTimeLimitNames); }
-absl::StatusOr<Algo> ParseAlgo(const std::string& name) { return ParseName(name, kAlgoNames); }
-
-LearnerConfig DefaultLearnerConfig(absl::string_view scenario, Algo algo) {
-  LearnerConfig config;
-  config.algo = algo;
-  const env::ScenarioTuning& tuning = env::TuningOf(scenario);
-  config.batch_steps = tuning.batch_steps.value_or(config.batch_steps);
-  config.ppo.learning_rate = tuning.learning_rate.value_or(config.ppo.learning_rate);
-  config.ppo.separate_optimizers = tuning.separate_optimizers.value_or(config.ppo.separate_optimizers);
-  if (algo == Algo::kMaddpg) config.synchronous = false;
-  if (algo == Algo::kCmae) {
-    // CMAE's own loop: one environment, the tables updated at each episode's
-    // end and acted with from the next (one actor acting a 300-step unroll,
-    // its episode, per version), for at most 15,000 episodes of 300 steps.
-    config.actors = 1;
-    config.batch_steps = kCmaeEpisodeSteps;
-    config.budget_steps = config.cmae.total_episodes * kCmaeEpisodeSteps;
-  }
-  return config;
+std::vector<std::string> SettingChoices(TimeLimit) { return Names(kTimeLimitNames); }
+bool AbslParseFlag(absl::string_view text, TimeLimit* limit, std::string* error) {
+  return ParseFlagName(text, kTimeLimitNames, limit, error);
 }
+std::string AbslUnparseFlag(TimeLimit limit) { return TimeLimitName(limit); }
 
 absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* scenario,
                                                          const LearnerConfig& config) {
@@ -121,10 +76,12 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
   }
   if (config.max_policy_lag < 0) return absl::InvalidArgumentError("max_policy_lag must be >= 0");
   if (config.queue_capacity < 1) return absl::InvalidArgumentError("queue_capacity must be >= 1");
-  if (config.edti && config.algo != Algo::kMappo) return absl::InvalidArgumentError("edti is MAPPO's (algo mappo)");
+  IMCA_ASSIGN_OR_RETURN(const AlgorithmEntry* entry, Algorithms().Find(config.algo));
+  LearnerConfig named = config;
+  named.algo = entry->name;
   nn::SetTorchThreads(config.threads);  // Once per process (nn/threads.h).
-  IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Algorithm> algorithm, MakeAlgorithm(scenario, config));
-  auto learner = std::unique_ptr<Learner>(new Learner(scenario, config, std::move(algorithm)));
+  IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Algorithm> algorithm, entry->create(scenario, named));
+  auto learner = std::unique_ptr<Learner>(new Learner(scenario, named, std::move(algorithm)));
   if (config.max_batch_bytes < 1) return absl::InvalidArgumentError("max_batch_bytes must be >= 1");
   if (const int64_t bytes = learner->IterationBytes(config.batch_steps); bytes > config.max_batch_bytes) {
     return absl::InvalidArgumentError(absl::StrFormat(
@@ -222,7 +179,7 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std
   RegisterMetrics();
   if (!config_.run_dir.empty()) {
     checkpoints_.emplace((fs::path(config_.run_dir) / "checkpoints").string());
-    metrics_log_.emplace((fs::path(config_.run_dir) / "metrics.csv").string(), CsvHeader(AlgoName(config_.algo), scenario_->num_agents()));
+    metrics_log_.emplace((fs::path(config_.run_dir) / "metrics.csv").string(), CsvHeader(config_.algo, scenario_->num_agents()));
   }
   if (!config_.trained_log.empty()) {
     trained_log_.emplace(config_.trained_log, "iteration,actor_id,incarnation,sequence,policy_version");
@@ -267,7 +224,7 @@ void Learner::CountEpisodes(const v1::Unroll& u) {
 }
 
 absl::Status Learner::Validate(const v1::Unroll& unroll) const {
-  IMCA_RETURN_IF_ERROR(ValidateUnroll(unroll, *scenario_, {true, true, config_.edti}));
+  IMCA_RETURN_IF_ERROR(ValidateUnroll(unroll, *scenario_, {true, true, algorithm_->needs_influences()}));
   // A batch gathers unrolls until it holds batch_steps, so the largest is
   // batch_steps - 1 steps plus this unroll.
   const int64_t steps = UnrollSteps(unroll);
@@ -502,7 +459,7 @@ absl::Status Learner::TrainOn(const std::vector<v1::Unroll>& unrolls) {
   phases_.publish = Lap(lap);
   const IterationRecord record = Record(stats, lag, credit);
   exporter_.Publish(record);
-  if (metrics_log_.has_value()) AppendRow(&*metrics_log_, CsvRow(AlgoName(config_.algo), record));
+  if (metrics_log_.has_value()) AppendRow(&*metrics_log_, CsvRow(config_.algo, record));
   return absl::OkStatus();
 }
 

@@ -39,7 +39,7 @@ v1::Rejection RejectionOf(const absl::Status& status);
 
 // The learner's domain logic, independent of gRPC. It coordinates its parts:
 // the UnrollQueue (admission, exactly-once, back-pressure), its Algorithm
-// (MAPPO or MADDPG, learner/algorithms/), the CheckpointStore and two CsvLogs
+// (a registered one, learner/algorithms/registry.h), the CheckpointStore and two CsvLogs
 // (metrics.csv, trained_unrolls.csv); it owns the iteration loop, versioned
 // policy publication, status and metrics. An iteration hands batch_steps
 // joint env steps of unrolls to the algorithm, one at a time as they arrive,
@@ -124,7 +124,7 @@ class Learner {
   double SecondsStalled(std::chrono::steady_clock::time_point now, int queue_depth) const
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   double SecondsTraining(std::chrono::steady_clock::time_point now) const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // Adds one unroll to the algorithm's batch (which may train: MADDPG).
+  // Adds one unroll to the algorithm's batch (which may train: off-policy).
   absl::Status AddToBatch(FeaturisedUnroll* queued);
   // Trains the algorithm on the iteration made of `unrolls` (already
   // added), publishes and writes metrics.
@@ -154,7 +154,7 @@ class Learner {
   // Before everything that registers into it; callbacks read the fields
   // below under mu_.
   metrics::Registry registry_;
-  IterationExporter exporter_{&registry_, AlgoName(config_.algo)};
+  IterationExporter exporter_{&registry_, config_.algo};
   metrics::Histogram* policy_lag_ = nullptr;  // Of each trained unroll, in versions.
   // Refused unrolls by reason (v1::Rejection), each series there from the start.
   std::vector<metrics::Counter*> dropped_;

@@ -1,23 +1,15 @@
 #ifndef IMCA_LEARNER_LEARNER_CONFIG_H_
 #define IMCA_LEARNER_LEARNER_CONFIG_H_
 
+#include <any>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "learner/algorithms/mappo/gae.h"
-#include "learner/algorithms/mappo/ppo_trainer.h"
 
 namespace imca::learner {
-
-// What the centralised critic sees besides the agent-id one-hot.
-enum class CriticInput {
-  kState,     // The global state encoding (featurizer global_dim).
-  kJointObs,  // All agents' observations concatenated in agent order (n * obs_dim),
-              // on-policy's MAPPO "share_obs".
-};
 
 // How the step limit ends an episode for the learner.
 enum class TimeLimit {
@@ -25,91 +17,34 @@ enum class TimeLimit {
   kTerminal,   // As termination: no bootstrap (on-policy's MPE runner).
 };
 
-// "state" / "joint_obs", "bootstrap" / "terminal"; parsers return
-// INVALID_ARGUMENT naming the accepted values.
-std::string CriticInputName(CriticInput input);
-std::vector<std::string> CriticInputNames();
-absl::StatusOr<CriticInput> ParseCriticInput(const std::string& name);
+// "bootstrap" / "terminal" (the flag's spelling; base/settings.h).
 std::string TimeLimitName(TimeLimit limit);
-std::vector<std::string> TimeLimitNames();
-absl::StatusOr<TimeLimit> ParseTimeLimit(const std::string& name);
+std::vector<std::string> SettingChoices(TimeLimit);
+bool AbslParseFlag(absl::string_view text, TimeLimit* limit, std::string* error);
+std::string AbslUnparseFlag(TimeLimit limit);
 
-// MADDPG for discrete actions (learner/algorithms/maddpg/maddpg.h, docs/learner.md
-// "MADDPG"): the reference implementations' defaults (BASELINES.md 2) where
-// our episodes allow them.
-struct MaddpgConfig {
-  int hidden = 64;                  // Two hidden ReLU layers, actor and critic.
-  double actor_lr = 1e-2;           // Adam, both nets (reference 1e-2).
-  double critic_lr = 1e-2;
-  double tau = 0.01;                // Soft target update per gradient step.
-  double max_grad_norm = 0.5;       // Per network.
-  double policy_reg = 1e-3;         // * mean(logits^2) in the actor loss.
-  int batch_size = 1024;            // Transitions per gradient step.
-  int64_t buffer_transitions = 1000000;  // Joint transitions kept (FIFO).
-  int64_t learning_starts = 25600;  // No update before the replay holds this many.
-  // Gradient steps per joint env step inserted (the reference's one per 100
-  // env steps). Enforced both ways: the learner takes no more unrolls than
-  // the updates due so far allow (the queue fills and pushes wait, so the
-  // actors slow down), and takes no update ahead of the data.
-  double updates_per_step = 0.01;
-  // One actor (the observation carries the agent id, as MAPPO's) and one
-  // critic with an agent-id input, or n of each.
-  bool share_parameters = true;
-};
-
-// CMAE as its released gridworld code runs it (learner/algorithms/cmae/cmae.h,
-// BASELINES.md 3.1, docs/baselines.md "CMAE"): main.py's defaults and the
-// flags its scripts pass (--tree_subspace --stochastic_select_subspace
-// --mixed_explore); its discount is this struct's, not LearnerConfig::gamma.
-struct CmaeConfig {
-  double gamma = 0.95;
-  double explore_lr = 0.1;         // alpha1: the exploration tables' learning rate.
-  double exploit_lr = 0.05;        // alpha2: the exploitation tables'.
-  int64_t replay = 400000;         // Transitions kept (replay_size).
-  // Acting mixes the tables with weight episodes / total_episodes on the
-  // exploitation side (1 from then on).
-  int64_t total_episodes = 15000;
-  int goal_samples = 1024;         // Replay states a goal is chosen among.
-  int batch = 512;                 // Transitions of an exploitation fit.
-  int entropy_every = 20;          // Goals between choices of the restricted space.
-  double recip_t = 50;             // Reciprocal temperature of that choice.
-  int tracked = 10;                // Restricted spaces taken off the queue per choice (subspace_q_size).
-  // A (state, joint action) seen this often goes into the goal sampler's
-  // replay no more (insert_data's th).
-  int64_t insert_threshold = 10000;
-  // Refuse a scenario whose tables could outgrow this (Cmae::TableBytes).
-  int64_t max_table_mb = 4096;
-};
-
-// The learner's algorithm.
-enum class Algo {
-  kMappo,   // On-policy multi-agent PPO (learner/algorithms/mappo/mappo.h).
-  kMaddpg,  // Off-policy MADDPG (learner/algorithms/maddpg/maddpg.h).
-  kCmae,    // Tabular CMAE (learner/algorithms/cmae/cmae.h).
-};
-// "mappo" / "maddpg" / "cmae"; the parser returns INVALID_ARGUMENT naming them.
-std::string AlgoName(Algo algo);
-std::vector<std::string> AlgoNames();
-absl::StatusOr<Algo> ParseAlgo(const std::string& name);
-
+// What every algorithm's learner shares: the service, collection, the
+// budget, checkpoints, the returns. An algorithm's own settings are its own
+// struct, in its folder, held in `options` (learner/algorithms/registry.h).
 struct LearnerConfig {
-  Algo algo = Algo::kMappo;
+  // A registered algorithm's name (learner/algorithms/registry.cc); empty:
+  // the first registered.
+  std::string algo;
+  // The algorithm's own settings, of the type its registry entry names; none:
+  // that type's defaults (OptionsOf below).
+  std::any options;
   // Of every algorithm: the seed of network initialisation and sampling
   // (minibatch shuffling, replay draws), and LibTorch's intra-op threads.
   uint64_t seed = 1;
   int threads = 1;
-  PpoConfig ppo;                  // MAPPO only; its seed and threads are the two above.
-  MaddpgConfig maddpg;            // MADDPG only; its discount is `gamma`.
-  CmaeConfig cmae;                // CMAE only.
-  CriticInput critic_input = CriticInput::kState;  // MAPPO only (MADDPG's critic: joint obs and actions).
   TimeLimit time_limit = TimeLimit::kBootstrap;
   // Synchronous collection: an iteration trains only on unrolls acted with
   // the policy it starts from (lag 0). Push refuses any other version, and
   // once batch_steps of the current version are queued, further unrolls of
   // it (both as "stale ..."). Each published policy asks every actor for
   // batch_steps / actors env steps of it (Policy.sync_steps_per_actor); an
-  // actor acts them and waits for the next version. MADDPG's default is
-  // asynchronous (DefaultLearnerConfig): it learns from a replay of any age.
+  // actor acts them and waits for the next version. An off-policy
+  // algorithm's default may be asynchronous (its registry entry's defaults).
   bool synchronous = true;
   // The actors that collect for a synchronous learner; batch_steps must be a
   // multiple of it. Fewer actors than this stall a synchronous learner
@@ -123,19 +58,12 @@ struct LearnerConfig {
   // actors' seeds fixed, a run is a function of its configuration
   // (docs/learner.md, "Deterministic runs").
   bool deterministic = false;
-  // EDTI (docs/baselines.md): each agent's advantage gains that of EDTI's
-  // value of interaction (EdtiInteractionRewards, learner/algorithms/mappo/gae.h, from the
-  // unroll's influences and the critic's values of the influenced agents),
-  // learned by a third value head (ppo.value_heads must be 3). Push refuses
-  // unrolls without influences (INVALID_ARGUMENT naming unroll.influences).
-  bool edti = false;
-  EdtiCoefficients edti_coefficients;
   double gamma = 0.99;            // Extrinsic discount.
   double gamma_int = 0.99;        // Intrinsic discount.
   double lambda = 0.95;           // GAE lambda (both heads).
-  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int (MADDPG: r = r_ext + c_int r_int).
-  // Joint env steps (T*E summed over unrolls) per iteration: MAPPO's batch,
-  // MADDPG's interval between policy publications.
+  double intrinsic_coef = 1.0;    // c_int in A = A_ext + c_int * A_int (or r = r_ext + c_int r_int).
+  // Joint env steps (T*E summed over unrolls) per iteration: an on-policy
+  // algorithm's batch, an off-policy one's interval between publications.
   int64_t batch_steps = 1024;
   int max_policy_lag = 4;         // Unrolls older than this many versions are dropped (on-policy only).
   int queue_capacity = 4;          // Unrolls waiting for training; Push blocks beyond it.
@@ -161,12 +89,57 @@ struct LearnerConfig {
   int64_t max_batch_bytes = int64_t{8192} * 1000 * 1000;  // --max_batch_mb 8192
 };
 
-// The defaults of a learner of `scenario` trained by `algo`, in the order they
-// join: this file's and PpoConfig's, the scenario's tuning (env::TuningOf,
-// beside the scenario's spec), then MADDPG's asynchronous collection. The
-// one definition every way of starting the learner resolves (the binary's
-// flags override it, --list prints it per scenario).
-LearnerConfig DefaultLearnerConfig(absl::string_view scenario, Algo algo);
+// The settings every algorithm's learner shares (base/settings.h): type,
+// flag, field of LearnerConfig, help. The flags --algo and --max_batch_mb
+// (max_batch_bytes in MB) are learner_flags.cc's own; run_dir and
+// trained_log are the binary's wiring, not settings.
+#define IMCA_LEARNER_SETTINGS(X)                                                                                    \
+  X(int64_t, steps, budget_steps, "budget in joint env steps (0: until stopped)")                                   \
+  X(int64_t, batch_steps, batch_steps,                                                                              \
+    "joint env steps per iteration (on-policy: the batch; off-policy: between policy publications)")                \
+  X(bool, synchronous, synchronous,                                                                                 \
+    "train each iteration only on unrolls of the policy it starts from, each actor acting batch_steps / actors "   \
+    "steps per version")                                                                                            \
+  X(int, actors, actors,                                                                                            \
+    "actors collecting for a synchronous learner: each policy version asks each for batch_steps / actors env "     \
+    "steps")                                                                                                        \
+  X(bool, deterministic, deterministic,                                                                             \
+    "add each batch's unrolls in (actor id, sequence) order once it is whole, not as they arrive: with the reward " \
+    "server's --deterministic, a run is a function of its configuration (needs --synchronous)")                    \
+  X(int, max_policy_lag, max_policy_lag,                                                                            \
+    "on-policy algorithms: drop unrolls older than this many policy versions (off-policy ones keep every one)")    \
+  X(int, queue_capacity, queue_capacity, "unrolls waiting for training before PushUnrolls blocks the actors")       \
+  X(uint64_t, seed, seed, "seed of network initialisation and sampling (minibatch shuffling, replay draws)")        \
+  X(int, threads, threads, "LibTorch intra-op threads")                                                             \
+  X(::imca::learner::TimeLimit, time_limit, time_limit,                                                                              \
+    "the step limit for the returns: bootstrap (truncation) or terminal (no bootstrap)")                           \
+  X(double, gamma, gamma, "extrinsic discount")                                                                     \
+  X(double, gamma_int, gamma_int, "intrinsic discount")                                                             \
+  X(double, lambda, lambda, "GAE lambda")                                                                           \
+  X(double, intrinsic_coef, intrinsic_coef, "c_int: weight of the intrinsic advantage (or reward)")                 \
+  X(int, checkpoint_every, checkpoint_every, "iterations between checkpoints (0: not by iterations)")               \
+  X(double, checkpoint_seconds, checkpoint_seconds,                                                                 \
+    "seconds between checkpoints (0: not by time); a killed learner loses at most this much training")
+
+// The algorithm options `config` holds, if they are a T (else null).
+template <typename T>
+const T* OptionsIf(const LearnerConfig& config) {
+  return std::any_cast<T>(&config.options);
+}
+// The T options `config` holds, or T's defaults if it holds none (or
+// another type's, which the algorithm's Create refuses).
+template <typename T>
+const T& OptionsOf(const LearnerConfig& config) {
+  static const T* const kDefaults = new T();
+  const T* options = OptionsIf<T>(config);
+  return options != nullptr ? *options : *kDefaults;
+}
+// The T options in `config`, made T's defaults first if it holds no T.
+template <typename T>
+T& MutableOptions(LearnerConfig* config) {
+  if (std::any_cast<T>(&config->options) == nullptr) config->options = T();
+  return *std::any_cast<T>(&config->options);
+}
 
 }  // namespace imca::learner
 

@@ -233,11 +233,11 @@ TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
 
 TEST_F(LearnerTest, EdtiNeedsInfluencesAndTrainsItsInteractionHead) {
   config_.budget_steps = 2 * 256;
-  config_.edti = true;
+  MutableOptions<MappoOptions>(&config_).edti = true;
   auto two_heads = Learner::Create(scenario_.get(), config_);
   ASSERT_FALSE(two_heads.ok());
   EXPECT_THAT(two_heads.status().message(), HasSubstr("edti needs 3"));
-  config_.ppo.value_heads = 3;
+  MutableOptions<MappoOptions>(&config_).ppo.value_heads = 3;
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok()) << learner.status();
   Learner* l = learner->get();
@@ -311,9 +311,9 @@ TEST_F(LearnerTest, SynchronousTrainsOnlyOnThePolicyItStartsFrom) {
 
 TEST_F(LearnerTest, CriticInputsAndTimeLimitOptionsTrain) {
   config_.budget_steps = 256;
-  config_.critic_input = CriticInput::kJointObs;
+  MutableOptions<MappoOptions>(&config_).critic_input = CriticInput::kJointObs;
   config_.time_limit = TimeLimit::kTerminal;
-  config_.ppo.value_heads = 1;
+  MutableOptions<MappoOptions>(&config_).ppo.value_heads = 1;
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok()) << learner.status();
   const env::Featurizer featurizer(*scenario_);
@@ -323,8 +323,13 @@ TEST_F(LearnerTest, CriticInputsAndTimeLimitOptionsTrain) {
   ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
   trainer.join();
   EXPECT_EQ(l->Status().policy_version(), 1);
-  EXPECT_EQ(ParseCriticInput("joint_obs").value(), CriticInput::kJointObs);
-  EXPECT_THAT(std::string(ParseTimeLimit("never").status().message()), HasSubstr("bootstrap or terminal"));
+  CriticInput input = CriticInput::kState;
+  std::string error;
+  EXPECT_TRUE(AbslParseFlag("joint_obs", &input, &error));
+  EXPECT_EQ(input, CriticInput::kJointObs);
+  TimeLimit limit = TimeLimit::kBootstrap;
+  EXPECT_FALSE(AbslParseFlag("never", &limit, &error));
+  EXPECT_THAT(error, HasSubstr("bootstrap or terminal"));
 }
 
 TEST_F(LearnerTest, ResentUnrollsAreDroppedAcrossARestart) {

@@ -25,6 +25,8 @@
 #include "base/rng.h"
 #include "env/env.h"
 #include "env/vec_env.h"
+#include "learner/algorithms/mappo/mappo_options.h"
+#include "learner/algorithms/registry.h"
 #include "learner/learner.h"
 #include "nn/blas_kernels.h"
 #include "protocol/test_unrolls.h"
@@ -165,10 +167,10 @@ struct LearnerShape {
 // concurrent critic (docs/benchmarks.md, "Sample efficiency against the
 // reference MAPPO").
 LearnerShape DefaultShape() {
-  const learner::LearnerConfig learner = learner::DefaultLearnerConfig("coop_nav", learner::Algo::kMappo);
+  const learner::LearnerConfig learner = *learner::DefaultLearnerConfig("coop_nav", "mappo");
   const actor::ActorConfig actor = actor::DefaultActorConfig("coop_nav");
-  return {"", learner.batch_steps, actor.unroll_length, actor.num_envs, learner.ppo.separate_optimizers,
-          learner.ppo.concurrent_critic};
+  return {"", learner.batch_steps, actor.unroll_length, actor.num_envs, learner::OptionsOf<learner::MappoOptions>(learner).ppo.separate_optimizers,
+          learner::OptionsOf<learner::MappoOptions>(learner).ppo.concurrent_critic};
 }
 constexpr LearnerShape kV1Shape{"_v1", 8192, 64, 32, false, false};
 
@@ -179,8 +181,8 @@ double BenchLearner(const env::Scenario& scenario, int rounds, int threads, cons
   config.run_dir = "/tmp/imca_bench_speed_learner_" + std::to_string(getpid());
   config.checkpoint_every = 0;
   config.threads = threads;
-  config.ppo.separate_optimizers = shape.separate_optimizers;
-  config.ppo.concurrent_critic = shape.concurrent_critic;
+  learner::MutableOptions<learner::MappoOptions>(&config).ppo.separate_optimizers = shape.separate_optimizers;
+  learner::MutableOptions<learner::MappoOptions>(&config).ppo.concurrent_critic = shape.concurrent_critic;
   config.max_policy_lag = 1 << 30;
   config.queue_capacity = 8;
   auto learner = learner::Learner::Create(&scenario, config);

@@ -15,6 +15,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/learner_service.grpc.pb.h"
+#include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 #include "metrics/metrics_testing.h"
@@ -42,7 +43,7 @@ class RpcMetricsTest : public ::testing::Test {
     scenario_ = *std::move(scenario);
     learner::LearnerConfig config;
     config.synchronous = false;
-    config.ppo.hidden = 16;
+    learner::MutableOptions<learner::MappoOptions>(&config).ppo.hidden = 16;
     config.checkpoint_every = 0;
     config.checkpoint_seconds = 0;
     auto learner = learner::Learner::Create(scenario_.get(), config);
@@ -152,7 +153,7 @@ TEST(RpcMetricsRefusedTest, AnOversizedRequestIsCountedAtTheClientOnly) {
   ASSERT_TRUE(scenario.ok());
   learner::LearnerConfig config;
   config.synchronous = false;
-  config.ppo.hidden = 16;
+  learner::MutableOptions<learner::MappoOptions>(&config).ppo.hidden = 16;
   auto learner = learner::Learner::Create(scenario->get(), config);
   ASSERT_TRUE(learner.ok());
   learner::LearnerServiceImpl service(learner->get());

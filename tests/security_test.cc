@@ -23,6 +23,7 @@
 #include "gtest/gtest.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "imca/v1/reward_service.grpc.pb.h"
+#include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 #include "protocol/test_unrolls.h"
@@ -121,7 +122,7 @@ class SecurityTest : public ::testing::Test {
     config.budget_steps = 1 << 22;
     config.checkpoint_every = 0;
     config.checkpoint_seconds = 0;
-    config.ppo.hidden = 16;
+    learner::MutableOptions<learner::MappoOptions>(&config).ppo.hidden = 16;
     auto learner = learner::Learner::Create(scenario_.get(), config);
     ASSERT_TRUE(learner.ok()) << learner.status();
     learner_ = *std::move(learner);

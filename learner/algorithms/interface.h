@@ -15,11 +15,11 @@ namespace imca::learner {
 
 // The learner's training algorithm, behind which the service, the queue,
 // policy versions, checkpoints' metadata and metrics are shared
-// (learner/learner.h). Two implementations: MAPPO (mappo/, on-policy: an
-// iteration's unrolls become one PPO batch) and MADDPG (maddpg/,
-// off-policy: unrolls go into a replay buffer and the algorithm takes as many
-// gradient steps as the configured ratio of updates to env steps allows).
-// Torch stays behind the implementations' .cc files.
+// (learner/learner.h). Each implementation is a folder beside this file,
+// registered in registry.cc: an on-policy one trains on an iteration's
+// unrolls as one batch; an off-policy one (off_policy()) learns as it adds,
+// from a replay of any age. Torch stays behind the implementations' .cc
+// files.
 
 // A validated unroll with the network inputs its algorithm computed on the
 // pushing thread (the training thread then only trains).
@@ -33,8 +33,7 @@ struct FeaturisedUnroll {
 // What one iteration did. The fields below are every algorithm's (in its
 // own sense, documented by each); `values` holds the algorithm's own
 // columns of metrics.csv by name, exactly those the metrics table lists for
-// it (AlgorithmColumnNames, learner/iteration_metrics.h): MAPPO's losses, KLs
-// and clip share, MADDPG's actor and critic losses and replay size.
+// it (its registry entry's columns, learner/algorithms/registry.h).
 struct IterationStats {
   std::vector<std::pair<std::string, double>> values;
   double entropy = 0;    // Of the acting policies, nats.
@@ -68,6 +67,9 @@ class Algorithm {
   // drops none as stale), and trains as it adds (so an iteration cut short
   // by a stop has trained and is counted and published).
   virtual bool off_policy() const { return false; }
+  // Thread-safe: the unrolls must carry influences (the learner refuses
+  // others, INVALID_ARGUMENT naming unroll.influences).
+  virtual bool needs_influences() const { return false; }
 
   // Takes one unroll of the current iteration. Errors: INTERNAL (torch).
   virtual absl::Status Add(const FeaturisedUnroll& unroll) = 0;

@@ -83,13 +83,13 @@ OPTIONS = [
                "batch steps / actors of it")),
     ("--checkpoint-seconds", {"learner": "checkpoint_seconds"},
      dict(type=float, help="learner checkpoint interval: what a learner restart loses at most")),
-    ("--objective", {"learner": "objective"}, dict(choices=lambda k: k["objectives"],
+    ("--objective", {"learner": "objective"}, dict(choices=lambda k: learner_choices(k, "objective"),
                                                    help="PPO clip against the behaviour policy or a recomputed proximal one")),
     ("--layer-norm", {"learner": "layer_norm"}, dict(type=boolean, metavar="BOOL",
                                                      help="LayerNorm on input and hidden layers")),
     ("--value-heads", {"learner": "value_heads"}, dict(type=int, help="2: extrinsic + intrinsic heads; 1: one")),
-    ("--critic-input", {"learner": "critic_input"}, dict(choices=lambda k: k["critic_inputs"], help="centralised critic's input")),
-    ("--time-limit", {"learner": "time_limit"}, dict(choices=lambda k: k["time_limits"], help="the step limit in the returns")),
+    ("--critic-input", {"learner": "critic_input"}, dict(choices=lambda k: learner_choices(k, "critic_input"), help="centralised critic's input")),
+    ("--time-limit", {"learner": "time_limit"}, dict(choices=lambda k: learner_choices(k, "time_limit"), help="the step limit in the returns")),
     ("--hidden-gain", {"learner": "hidden_gain"}, dict(type=float, help="orthogonal init gain of hidden layers")),
     ("--value-clip", {"learner": "value_clip"}, dict(type=float, help="value clipping range (0: off)")),
     ("--huber-delta", {"learner": "huber_delta"}, dict(type=float, help="Huber value loss delta (0: MSE)")),
@@ -140,6 +140,11 @@ OPTIONS = [
 PROGRAMS_OF = {flag: programs for flag, programs, _ in OPTIONS}
 
 
+def learner_choices(known, name):
+    """The names the learner's enum setting `name` takes (its --list row)."""
+    return next(row["choices"] for row in known["learner_settings"] if row["name"] == name)
+
+
 def dest(flag):
     return flag[2:].replace("-", "_")
 
@@ -148,6 +153,9 @@ def argparse_keywords(flag, programs, keywords, known):
     """An OPTIONS entry's argparse keywords with its choices from `known`
     (binaries.facts()) and its default, as the binaries define it, in its help."""
     keywords = dict(keywords)
+    if keywords.get("type") is boolean:  # The bare form too, as the binaries take it: --x is --x true.
+        keywords.setdefault("nargs", "?")
+        keywords.setdefault("const", True)
     if callable(keywords.get("choices")):
         keywords["choices"] = keywords["choices"](known)
     text = default_text(flag, programs, known)
@@ -204,8 +212,10 @@ def _two_level_text(table, name, outer_default, scenario_default, both):
     kind: {scenario: defaults}}: by the outer key, or by scenario, where only
     one of them matters; else both(). None if a default does not hold the
     setting."""
-    if any(d.get(name) is None for by_scenario in table.values() for d in by_scenario.values()):
+    table = {o: by for o, by in table.items() if all(d.get(name) is not None for d in by.values())}
+    if not table:  # No algorithm or reward kind holds it.
         return None
+    outer_default = outer_default if outer_default in table else next(iter(table))
     if all(len({_fmt(d[name]) for d in table[o].values()}) == 1 for o in table):  # By the outer key only.
         return _summary({o: next(iter(table[o].values()))[name] for o in table}, outer_default)
     if all(len({_fmt(table[o][s][name]) for o in table}) == 1 for s in table[outer_default]):  # By scenario only.

@@ -13,6 +13,7 @@
 #include "base/lap.h"
 #include "base/rng.h"
 #include "base/status_macros.h"
+#include "learner/algorithms/registry.h"
 
 namespace imca::learner {
 
@@ -63,7 +64,7 @@ struct Cmae::Impl {
 
   const env::Scenario* scenario;
   const LearnerConfig config;
-  const CmaeConfig& c = config.cmae;
+  const CmaeConfig& c = OptionsOf<CmaeConfig>(config);
   const env::JointStateSpace space;
   const int n;
   const int num_actions;
@@ -255,7 +256,7 @@ absl::Status Cmae::Impl::Read(std::istream& in) {
 }
 
 double Cmae::TableBytes(const env::JointStateSpace& space, const LearnerConfig& config) {
-  const CmaeConfig& c = config.cmae;
+  const CmaeConfig& c = OptionsOf<CmaeConfig>(config);
   // A replay slot: the transition, its time stamp and its place in the
   // index; two replays.
   const double replay = 2.0 * static_cast<double>(c.replay) * (sizeof(Transition) + 4 + 24);
@@ -272,7 +273,8 @@ Cmae::Cmae(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Cmae::~Cmae() = default;
 
 absl::StatusOr<std::unique_ptr<Cmae>> Cmae::Create(const env::Scenario* scenario, const LearnerConfig& config) {
-  const CmaeConfig& c = config.cmae;
+  IMCA_ASSIGN_OR_RETURN(const CmaeConfig* options, CheckedOptions<CmaeConfig>(config));
+  const CmaeConfig& c = *options;
   if (!(c.gamma >= 0 && c.gamma <= 1)) return absl::InvalidArgumentError("cmae.gamma (--cmae_gamma) must be in [0, 1]");
   if (!(c.explore_lr > 0 && c.explore_lr <= 1) || !(c.exploit_lr > 0 && c.exploit_lr <= 1)) {
     return absl::InvalidArgumentError("cmae.explore_lr and exploit_lr (--cmae_explore_lr, --cmae_exploit_lr) must be in (0, 1]");

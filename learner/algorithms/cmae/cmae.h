@@ -9,6 +9,7 @@
 #include "absl/status/statusor.h"
 #include "env/env.h"
 #include "env/joint_state.h"
+#include "learner/algorithms/cmae/cmae_options.h"
 #include "learner/algorithms/cmae/cmae_parts.h"
 #include "learner/algorithms/interface.h"
 #include "learner/learner_config.h"
@@ -81,6 +82,10 @@ class Cmae final : public Algorithm {
   explicit Cmae(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
+
+class AlgorithmRegistry;
+// Adds CMAE (cmae_registration.cc) to `registry` (registry.cc's list).
+absl::Status RegisterCmae(AlgorithmRegistry* registry);
 
 }  // namespace imca::learner
 

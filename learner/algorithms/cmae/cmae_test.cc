@@ -13,6 +13,7 @@
 #include "env/vec_env.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/cmae/cmae_parts.h"
+#include "learner/algorithms/registry.h"
 #include "learner/learner.h"
 #include "protocol/policy_mlp.h"
 #include "protocol/policy_table.h"
@@ -325,8 +326,8 @@ std::unique_ptr<env::Scenario> SmallPass(int step_limit) {
 }
 
 LearnerConfig SmallConfig(int64_t episodes) {
-  LearnerConfig config = DefaultLearnerConfig("pass_cmae", Algo::kCmae);
-  config.cmae.total_episodes = episodes;
+  LearnerConfig config = *DefaultLearnerConfig("pass_cmae", "cmae");
+  MutableOptions<CmaeConfig>(&config).total_episodes = episodes;
   config.seed = 5;
   return config;
 }
@@ -449,12 +450,12 @@ TEST(CmaeTest, RefusesWhatItCannotHold) {
   config.num_agents = 9;
   auto big = env::MakeScenario(config, env::DefaultMapDir());
   ASSERT_TRUE(big.ok()) << big.status();
-  LearnerConfig learner = DefaultLearnerConfig("coop_nav", Algo::kCmae);
+  LearnerConfig learner = *DefaultLearnerConfig("coop_nav", "cmae");
   const auto refused = Cmae::Create(big->get(), learner);
   ASSERT_TRUE(absl::IsInvalidArgument(refused.status()));
   EXPECT_NE(refused.status().message().find("2^62"), std::string::npos) << refused.status();
   const auto scenario = PassCmae();
-  learner.cmae.max_table_mb = 10;
+  MutableOptions<CmaeConfig>(&learner).max_table_mb = 10;
   const auto over = Cmae::Create(scenario.get(), learner);
   ASSERT_TRUE(absl::IsInvalidArgument(over.status()));
   EXPECT_NE(over.status().message().find("--cmae_max_table_mb"), std::string::npos) << over.status();

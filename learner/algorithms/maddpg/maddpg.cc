@@ -12,6 +12,7 @@
 #include "absl/strings/str_join.h"
 #include "base/lap.h"
 #include "base/status_macros.h"
+#include "learner/algorithms/registry.h"
 #include "env/featurizer.h"
 #include "learner/algorithms/maddpg/maddpg_internal.h"
 #include "nn/archive.h"
@@ -25,7 +26,8 @@ namespace {
 constexpr char kTag[] = "IMCA-MADDPG-1";
 
 absl::Status ValidateConfig(const LearnerConfig& config) {
-  const MaddpgConfig& m = config.maddpg;
+  IMCA_ASSIGN_OR_RETURN(const MaddpgConfig* options, CheckedOptions<MaddpgConfig>(config));
+  const MaddpgConfig& m = *options;
   // Messages name the config field and its learner flag.
   const auto bad = [](const char* field, const char* flag, const std::string& why) {
     return absl::InvalidArgumentError(absl::StrCat("maddpg.", field, " (--", flag, ") ", why));
@@ -79,7 +81,7 @@ struct Maddpg::Impl {
   Impl(const env::Scenario* scenario, const LearnerConfig& config)
       : scenario(scenario),
         config(config),
-        m(config.maddpg),
+        m(OptionsOf<MaddpgConfig>(config)),
         featurizer(*scenario),
         n(scenario->num_agents()),
         k(scenario->state_size()),
@@ -341,11 +343,12 @@ struct Maddpg::Impl {
 absl::StatusOr<std::unique_ptr<Maddpg>> Maddpg::Create(const env::Scenario* scenario, const LearnerConfig& config) {
   IMCA_RETURN_IF_ERROR(ValidateConfig(config));
   const int64_t per_transition = ReplayTransitionBytes(*scenario);
-  if (config.maddpg.buffer_transitions > config.max_batch_bytes / per_transition) {
+  const MaddpgConfig& m = OptionsOf<MaddpgConfig>(config);
+  if (m.buffer_transitions > config.max_batch_bytes / per_transition) {
     return absl::InvalidArgumentError(absl::StrFormat(
         "maddpg.buffer_transitions (--maddpg_buffer): a replay of %d transitions needs %.0f MB here, over the "
         "learner's memory cap of %.0f MB (--max_batch_mb)",
-        config.maddpg.buffer_transitions, config.maddpg.buffer_transitions * (per_transition / 1e6),
+        m.buffer_transitions, m.buffer_transitions * (per_transition / 1e6),
         config.max_batch_bytes / 1e6));
   }
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Impl> impl,

@@ -9,6 +9,7 @@
 #include "absl/status/statusor.h"
 #include "env/env.h"
 #include "learner/algorithms/interface.h"
+#include "learner/algorithms/maddpg/maddpg_options.h"
 #include "learner/learner_config.h"
 
 namespace imca::learner {
@@ -82,6 +83,10 @@ class Maddpg final : public Algorithm {
   explicit Maddpg(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
+
+class AlgorithmRegistry;
+// Adds MADDPG (maddpg_registration.cc) to `registry` (registry.cc's list).
+absl::Status RegisterMaddpg(AlgorithmRegistry* registry);
 
 }  // namespace imca::learner
 

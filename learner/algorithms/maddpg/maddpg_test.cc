@@ -11,6 +11,7 @@
 #include "gtest/gtest.h"
 #include "learner/algorithms/maddpg/maddpg_internal.h"
 #include "learner/iteration_metrics.h"
+#include "learner/algorithms/registry.h"
 #include "learner/learner.h"
 #include "protocol/test_unrolls.h"
 
@@ -46,10 +47,10 @@ class MaddpgTest : public ::testing::Test {
     auto scenario = env::MakeScenario(sc, env::DefaultMapDir());
     ASSERT_TRUE(scenario.ok()) << scenario.status();
     scenario_ = *std::move(scenario);
-    config_ = DefaultLearnerConfig("pass", Algo::kMaddpg);  // Asynchronous, as MADDPG runs.
-    config_.maddpg.batch_size = 8;
-    config_.maddpg.learning_starts = 8;
-    config_.maddpg.buffer_transitions = 64;
+    config_ = *DefaultLearnerConfig("pass", "maddpg");  // Asynchronous, as MADDPG runs.
+    MutableOptions<MaddpgConfig>(&config_).batch_size = 8;
+    MutableOptions<MaddpgConfig>(&config_).learning_starts = 8;
+    MutableOptions<MaddpgConfig>(&config_).buffer_transitions = 64;
     config_.gamma = 0.9;
     Rng rng(3);
     state_.resize(scenario_->state_size());
@@ -129,10 +130,10 @@ TEST_F(MaddpgTest, FindsTheOptimalJointActionOfACooperativeMatrixGame) {
   // equally often; the greedy joint action must become (2, 3).
   for (bool share : {true, false}) {
     LearnerConfig config = config_;
-    config.maddpg.share_parameters = share;
-    config.maddpg.buffer_transitions = 160;
-    config.maddpg.batch_size = 160;
-    config.maddpg.learning_starts = 160;
+    MutableOptions<MaddpgConfig>(&config).share_parameters = share;
+    MutableOptions<MaddpgConfig>(&config).buffer_transitions = 160;
+    MutableOptions<MaddpgConfig>(&config).batch_size = 160;
+    MutableOptions<MaddpgConfig>(&config).learning_starts = 160;
     auto maddpg = Make(config);
     for (int repeat = 0; repeat < 10; ++repeat) {
       for (int a0 = 0; a0 < 4; ++a0) {
@@ -151,29 +152,29 @@ TEST_F(MaddpgTest, FindsTheOptimalJointActionOfACooperativeMatrixGame) {
 
 TEST_F(MaddpgTest, RejectsBadConfigsNamingTheFlag) {
   LearnerConfig bad = config_;
-  bad.maddpg.batch_size = 0;
+  MutableOptions<MaddpgConfig>(&bad).batch_size = 0;
   EXPECT_THAT(Maddpg::Create(scenario_.get(), bad).status().message(), HasSubstr("--maddpg_batch"));
   bad = config_;
-  bad.maddpg.tau = 0;
+  MutableOptions<MaddpgConfig>(&bad).tau = 0;
   EXPECT_THAT(Maddpg::Create(scenario_.get(), bad).status().message(), HasSubstr("--maddpg_tau"));
   bad = config_;
-  bad.maddpg.updates_per_step = 0;
+  MutableOptions<MaddpgConfig>(&bad).updates_per_step = 0;
   EXPECT_EQ(Maddpg::Create(scenario_.get(), bad).status().code(), absl::StatusCode::kInvalidArgument);
   bad = config_;
-  bad.maddpg.buffer_transitions = 1000000;
-  bad.maddpg.learning_starts = 1000;
+  MutableOptions<MaddpgConfig>(&bad).buffer_transitions = 1000000;
+  MutableOptions<MaddpgConfig>(&bad).learning_starts = 1000;
   bad.max_batch_bytes = 1000000;  // 1 MB: far below a million transitions.
   EXPECT_THAT(Maddpg::Create(scenario_.get(), bad).status().message(), HasSubstr("--max_batch_mb"));
   bad = config_;
-  bad.maddpg.learning_starts = 1000;  // Over the buffer.
+  MutableOptions<MaddpgConfig>(&bad).learning_starts = 1000;  // Over the buffer.
   EXPECT_THAT(Maddpg::Create(scenario_.get(), bad).status().message(), HasSubstr("--maddpg_learning_starts"));
 }
 
 TEST_F(MaddpgTest, AddTakesExactlyTheUpdatesTheRatioAllows) {
   LearnerConfig config = config_;
-  config.maddpg.buffer_transitions = 4096;
-  config.maddpg.learning_starts = 100;
-  config.maddpg.updates_per_step = 0.05;
+  MutableOptions<MaddpgConfig>(&config).buffer_transitions = 4096;
+  MutableOptions<MaddpgConfig>(&config).learning_starts = 100;
+  MutableOptions<MaddpgConfig>(&config).updates_per_step = 0.05;
   auto maddpg = Make(config);
   // 16 steps x 8 envs = 128 transitions per unroll: the first gives
   // (128 - 99) * 0.05 = 1.45 -> 1 update, the second 1.45 + 6.4 -> 7 in all.
@@ -214,7 +215,7 @@ TEST_F(MaddpgTest, CheckpointRoundTripRestoresPolicyAndRatioAndRefusesOtherShape
   EXPECT_EQ(restored->updates(), 5);
   EXPECT_EQ(restored->ExportPolicy(3).SerializeAsString(), maddpg->ExportPolicy(3).SerializeAsString());
   LearnerConfig wider = config_;
-  wider.maddpg.hidden = 32;
+  MutableOptions<MaddpgConfig>(&wider).hidden = 32;
   auto mismatched = Make(wider);
   EXPECT_EQ(mismatched->Load(path).code(), absl::StatusCode::kInvalidArgument);
   std::filesystem::remove(path);
@@ -222,9 +223,9 @@ TEST_F(MaddpgTest, CheckpointRoundTripRestoresPolicyAndRatioAndRefusesOtherShape
 
 TEST_F(MaddpgTest, LearnerTrainsMaddpgAndPublishesReluPolicies) {
   LearnerConfig config = config_;
-  config.maddpg.buffer_transitions = 4096;
-  config.maddpg.learning_starts = 256;
-  config.maddpg.batch_size = 64;
+  MutableOptions<MaddpgConfig>(&config).buffer_transitions = 4096;
+  MutableOptions<MaddpgConfig>(&config).learning_starts = 256;
+  MutableOptions<MaddpgConfig>(&config).batch_size = 64;
   config.batch_steps = 256;
   config.budget_steps = 1024;
   config.run_dir = ::testing::TempDir() + "/maddpg_learner_test";
@@ -260,7 +261,8 @@ TEST_F(MaddpgTest, LearnerTrainsMaddpgAndPublishesReluPolicies) {
   EXPECT_EQ((*restarted)->CurrentPolicy()->SerializeAsString(), (*learner)->CurrentPolicy()->SerializeAsString());
   // A MAPPO learner refuses MADDPG's checkpoint rather than misreading it.
   LearnerConfig mappo = config;
-  mappo.algo = Algo::kMappo;
+  mappo.algo = "mappo";
+  mappo.options.reset();
   auto other = Learner::Create(scenario_.get(), mappo);
   ASSERT_TRUE(other.ok()) << other.status();
   EXPECT_FALSE((*other)->Restore(config.run_dir + "/checkpoints").ok());
@@ -271,8 +273,8 @@ TEST_F(MaddpgTest, AStopMidIterationCountsAndPublishesWhatWasTrained) {
   // MADDPG trains as it adds: a stop after two of an iteration's eight
   // unrolls counts those 256 steps and publishes the weights they trained.
   LearnerConfig config = config_;
-  config.maddpg.buffer_transitions = 4096;
-  config.maddpg.learning_starts = 64;
+  MutableOptions<MaddpgConfig>(&config).buffer_transitions = 4096;
+  MutableOptions<MaddpgConfig>(&config).learning_starts = 64;
   config.batch_steps = 1024;
   config.max_policy_lag = 0;  // On-policy only: old unrolls are not dropped.
   auto learner = Learner::Create(scenario_.get(), config);

@@ -7,37 +7,45 @@
 #include "base/lap.h"
 #include "base/status_macros.h"
 #include "learner/algorithms/mappo/gae.h"
+#include "learner/algorithms/registry.h"
 
 namespace imca::learner {
 
 int MappoCriticDim(const env::Scenario& scenario, const LearnerConfig& config) {
   const env::Featurizer featurizer(scenario);
   const int n = scenario.num_agents();
-  return (config.critic_input == CriticInput::kJointObs ? n * featurizer.obs_dim() : featurizer.global_dim()) + n;
+  const CriticInput input = OptionsOf<MappoOptions>(config).critic_input;
+  return (input == CriticInput::kJointObs ? n * featurizer.obs_dim() : featurizer.global_dim()) + n;
 }
 
 absl::StatusOr<std::unique_ptr<Mappo>> Mappo::Create(const env::Scenario* scenario, const LearnerConfig& config) {
-  if (config.edti != (config.ppo.value_heads == 3)) {
+  IMCA_ASSIGN_OR_RETURN(const MappoOptions* options, CheckedOptions<MappoOptions>(config));
+  if (options->edti != (options->ppo.value_heads == 3)) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "value_heads is ", config.ppo.value_heads,
-        config.edti ? ": edti needs 3 (extrinsic, intrinsic, interaction)" : ": 3 heads are for edti only"));
+        "value_heads is ", options->ppo.value_heads,
+        options->edti ? ": edti needs 3 (extrinsic, intrinsic, interaction)" : ": 3 heads are for edti only"));
   }
   if (!(config.gamma > 0 && config.gamma <= 1) || !(config.gamma_int > 0 && config.gamma_int <= 1) ||
       !(config.lambda >= 0 && config.lambda <= 1)) {
     return absl::InvalidArgumentError("gamma, gamma_int must be in (0,1] and lambda in [0,1]");
   }
   const env::Featurizer featurizer(*scenario);
-  PpoConfig ppo = config.ppo;
+  PpoConfig ppo = options->ppo;
   ppo.seed = config.seed;
   ppo.threads = config.threads;
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<PpoTrainer> trainer,
                         PpoTrainer::Create(ppo, featurizer.obs_dim(), MappoCriticDim(*scenario, config),
                                            scenario->num_actions()));
-  return std::unique_ptr<Mappo>(new Mappo(scenario, config, std::move(trainer)));
+  return std::unique_ptr<Mappo>(new Mappo(scenario, config, *options, std::move(trainer)));
 }
 
-Mappo::Mappo(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<PpoTrainer> trainer)
-    : scenario_(scenario), config_(config), featurizer_(*scenario), trainer_(std::move(trainer)) {}
+Mappo::Mappo(const env::Scenario* scenario, const LearnerConfig& config, const MappoOptions& options,
+             std::unique_ptr<PpoTrainer> trainer)
+    : scenario_(scenario),
+      config_(config),
+      options_(options),
+      featurizer_(*scenario),
+      trainer_(std::move(trainer)) {}
 
 int64_t Mappo::IterationBytes(int64_t steps) const {
   const int64_t per_step = int64_t{scenario_->num_agents()} * (featurizer_.obs_dim() + critic_dim());
@@ -72,7 +80,7 @@ FeaturisedUnroll Mappo::Featurise(v1::Unroll unroll) const {
 void Mappo::CriticInputsOf(const int32_t* state, const float* obs, float* out) const {
   const int n = scenario_->num_agents(), obs_dim = featurizer_.obs_dim(), critic_dim = this->critic_dim();
   const int features = critic_dim - n;  // The part every agent shares; then the agent id.
-  if (config_.critic_input == CriticInput::kState) {
+  if (options_.critic_input == CriticInput::kState) {
     featurizer_.GlobalState(state, out);
   } else if (obs != nullptr) {
     std::copy(obs, obs + n * obs_dim, out);
@@ -93,7 +101,7 @@ absl::Status Mappo::Add(const FeaturisedUnroll& q) {
   const int k = scenario_->state_size();
   const int obs_dim = featurizer_.obs_dim();
   const int critic_dim = this->critic_dim();
-  const bool one_head = config_.ppo.value_heads == 1;
+  const bool one_head = options_.ppo.value_heads == 1;
   const bool limit_terminal = config_.time_limit == TimeLimit::kTerminal;
   if (batch->size == 0) {  // Room for the whole batch (the last unroll may overshoot).
     batch->obs.reserve(config_.batch_steps * n * obs_dim);
@@ -104,7 +112,7 @@ absl::Status Mappo::Add(const FeaturisedUnroll& q) {
   const int64_t T = u.length(), E = u.num_envs(), M = E * n, B = T * M;
   // Critic inputs of states [T+1][E][n], featurised by Push.
   const std::vector<float>& inputs = q.critic_inputs;
-  const bool edti = config_.edti;
+  const bool edti = options_.edti;
   std::vector<float> v_ext((T + 1) * M), v_int((T + 1) * M), f_ext(B), f_int(B);
   std::vector<float> v_voi(edti ? (T + 1) * M : 0), f_voi(edti ? B : 0);
   IMCA_RETURN_IF_ERROR(
@@ -162,7 +170,7 @@ absl::Status Mappo::Add(const FeaturisedUnroll& q) {
     std::vector<float> voi(B);
     EdtiInteractionRewards(T, E, n, u.influences().data(), v_ext.data(), v_int.data(), u.rewards().data(),
                            u.intrinsic_rewards().data(), static_cast<float>(config_.gamma),
-                           config_.edti_coefficients, voi.data());
+                           options_.edti_coefficients, voi.data());
     ComputeGae(T, M, voi.data(), v_voi.data(), f_voi.data(), terminated.get(), truncated.get(), config_.gamma,
                config_.lambda, adv_voi.data(), ret_voi.data());
     for (int64_t i = 0; i < B; ++i) voi_sum_ += voi[i];
@@ -208,7 +216,7 @@ absl::StatusOr<IterationStats> Mappo::Train() {
   stats.seconds_optimizer = ppo.seconds_optimizer;
   stats.minibatches_skipped = ppo.minibatches_skipped;
   stats.skip_reason = ppo.skip_reason;
-  stats.updates = int64_t{config_.ppo.epochs} * config_.ppo.minibatches - stats.minibatches_skipped;
+  stats.updates = int64_t{options_.ppo.epochs} * options_.ppo.minibatches - stats.minibatches_skipped;
   return stats;
 }
 

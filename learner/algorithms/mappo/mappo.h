@@ -8,6 +8,7 @@
 #include "env/env.h"
 #include "env/featurizer.h"
 #include "learner/algorithms/interface.h"
+#include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/algorithms/mappo/ppo_trainer.h"
 #include "learner/learner_config.h"
 
@@ -22,7 +23,9 @@ namespace imca::learner {
 // [T+1][E][n][critic_dim]. Thread safety as Algorithm.
 class Mappo final : public Algorithm {
  public:
-  // `scenario` must outlive it. Errors: INVALID_ARGUMENT for a bad config.
+  // `scenario` must outlive it; its own settings are config.options, a
+  // MappoOptions (none: the defaults). Errors: INVALID_ARGUMENT for a bad
+  // config.
   static absl::StatusOr<std::unique_ptr<Mappo>> Create(const env::Scenario* scenario, const LearnerConfig& config);
 
   FeaturisedUnroll Featurise(v1::Unroll unroll) const override;
@@ -33,6 +36,7 @@ class Mappo final : public Algorithm {
   // on push: the learner's peak grew 5.8 KB per joint step against this
   // estimate's 7.0 KB.
   int64_t IterationBytes(int64_t steps) const override;
+  bool needs_influences() const override { return options_.edti; }
   absl::Status Add(const FeaturisedUnroll& unroll) override;
   absl::StatusOr<IterationStats> Train() override;
   v1::Policy ExportPolicy(int64_t version) const override { return trainer_->ExportPolicy(version); }
@@ -43,7 +47,8 @@ class Mappo final : public Algorithm {
   int critic_dim() const { return trainer_->critic_dim(); }
 
  private:
-  Mappo(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<PpoTrainer> trainer);
+  Mappo(const env::Scenario* scenario, const LearnerConfig& config, const MappoOptions& options,
+        std::unique_ptr<PpoTrainer> trainer);
   // Writes the critic inputs of every agent in `state`, [n][critic_dim]: the
   // state's encoding once, copied per agent with its id. `obs`, if not null,
   // holds the agents' observations of `state` ([n][obs_dim]), which the
@@ -52,6 +57,7 @@ class Mappo final : public Algorithm {
 
   const env::Scenario* scenario_;
   const LearnerConfig config_;
+  const MappoOptions options_;
   const env::Featurizer featurizer_;
   std::unique_ptr<PpoTrainer> trainer_;
   PpoBatch batch_;          // The current iteration's; reused every iteration.
@@ -63,6 +69,10 @@ class Mappo final : public Algorithm {
 // Critic input width for `config` on `scenario` (joint observations or the
 // global state, plus the agent id).
 int MappoCriticDim(const env::Scenario& scenario, const LearnerConfig& config);
+
+class AlgorithmRegistry;
+// Adds MAPPO (mappo_registration.cc) to `registry` (registry.cc's list).
+absl::Status RegisterMappo(AlgorithmRegistry* registry);
 
 }  // namespace imca::learner
 

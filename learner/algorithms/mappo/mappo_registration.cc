@@ -1,0 +1,108 @@
+// MAPPO's entry in the algorithm registry: its settings (mappo_options.h)
+// as flags, defaults, metrics columns and factory.
+#include <memory>
+#include <utility>
+
+#include "base/enum_names.h"
+#include "base/settings.h"
+#include "base/status_macros.h"
+#include "env/env.h"
+#include "learner/algorithms/mappo/mappo.h"
+#include "learner/algorithms/registry.h"
+
+IMCA_MAPPO_SETTINGS(IMCA_SETTING_FLAG)
+
+namespace imca::learner {
+
+namespace {
+
+constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "state"},
+                                                       {CriticInput::kJointObs, "joint_obs"}};
+
+// The scenario's tuning of PPO (env::TuningOf, beside the scenario's spec).
+void Defaults(absl::string_view scenario, LearnerConfig* learner) {
+  MappoOptions& options = MutableOptions<MappoOptions>(learner);
+  const env::ScenarioTuning& tuning = env::TuningOf(scenario);
+  options.ppo.learning_rate = tuning.learning_rate.value_or(options.ppo.learning_rate);
+  options.ppo.separate_optimizers = tuning.separate_optimizers.value_or(options.ppo.separate_optimizers);
+}
+
+absl::Status FillFromFlags(LearnerConfig* learner) {
+  MappoOptions* config = &MutableOptions<MappoOptions>(learner);
+  IMCA_MAPPO_SETTINGS(IMCA_SETTING_FILL)
+  if (config->edti) {
+    if (config->ppo.value_heads == 1) {
+      return absl::InvalidArgumentError("--value_heads 1 cannot be used with --edti (it needs 3)");
+    }
+    config->ppo.value_heads = 3;
+  }
+  return absl::OkStatus();
+}
+
+void AddJson(const LearnerConfig& learner, JsonObject* json) {
+  const MappoOptions& config = OptionsOf<MappoOptions>(learner);
+  IMCA_MAPPO_SETTINGS(IMCA_SETTING_JSON)
+}
+
+std::vector<SettingRow> Rows() {
+  std::vector<SettingRow> rows;
+  IMCA_MAPPO_SETTINGS(IMCA_SETTING_ROW)
+  return rows;
+}
+
+// MAPPO's own columns of metrics.csv: what Mappo::Train's values hold.
+std::vector<Column> Columns() {
+  return {
+      {"policy_loss", "%.6g", 1, "PPO's clipped surrogate loss of the iteration.", nullptr, Export::kGauge,
+       "imca_learner_policy_loss"},
+      {"value_loss", "%.6g", 1, "The critic's squared error of the iteration (summed over its heads).", nullptr,
+       Export::kGauge, "imca_learner_value_loss"},
+      {"approx_kl", "%.6g", 1, "Approximate KL divergence of the update.", nullptr, Export::kGauge,
+       "imca_learner_approx_kl"},
+      {"clip_fraction", "%.4f", 1, "Share of samples whose ratio was clipped.", nullptr, Export::kGauge,
+       "imca_learner_clip_fraction_ratio"},
+      {"behaviour_kl", "%.6g", 1, "KL divergence of the behaviour policy from the proximal one.", nullptr,
+       Export::kGauge, "imca_learner_behaviour_kl"},
+      {"voi_reward", "%.6g", 1, "EDTI's mean value-of-interaction reward (--edti).", nullptr, Export::kCsvOnly,
+       nullptr},
+  };
+}
+
+}  // namespace
+
+std::vector<std::string> SettingChoices(CriticInput) { return Names(kCriticInputNames); }
+bool AbslParseFlag(absl::string_view text, CriticInput* input, std::string* error) {
+  return ParseFlagName(text, kCriticInputNames, input, error);
+}
+std::string AbslUnparseFlag(CriticInput input) { return NameOf(input, kCriticInputNames); }
+
+std::vector<std::string> SettingChoices(PpoObjective) { return PpoObjectiveNames(); }
+bool AbslParseFlag(absl::string_view text, PpoObjective* objective, std::string* error) {
+  absl::StatusOr<PpoObjective> parsed = ParsePpoObjective(std::string(text));
+  if (!parsed.ok()) {
+    *error = std::string(parsed.status().message());
+    return false;
+  }
+  *objective = *parsed;
+  return true;
+}
+std::string AbslUnparseFlag(PpoObjective objective) { return PpoObjectiveName(objective); }
+
+absl::Status RegisterMappo(AlgorithmRegistry* registry) {
+  return registry->Add({
+      .name = "mappo",
+      .help = "on-policy multi-agent PPO: a shared actor, a centralised critic (docs/learner.md)",
+      .defaults = Defaults,
+      .settings = Rows(),
+      .fill_from_flags = FillFromFlags,
+      .add_json = AddJson,
+      .columns = Columns(),
+      .create = [](const env::Scenario* scenario,
+                   const LearnerConfig& config) -> absl::StatusOr<std::unique_ptr<Algorithm>> {
+        IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Mappo> mappo, Mappo::Create(scenario, config));
+        return std::unique_ptr<Algorithm>(std::move(mappo));
+      },
+  });
+}
+
+}  // namespace imca::learner
