@@ -11,6 +11,7 @@
 #include "base/enum_names.h"
 #include "base/lap.h"
 #include "base/status_macros.h"
+#include "learner/algorithms/acting.h"
 #include "protocol/unroll_check.h"
 #include "rpc/grpc_util.h"
 #include "rpc/service_flags.h"
@@ -18,14 +19,19 @@
 
 namespace imca::actor {
 
-std::vector<std::string> ActorAlgoNames() { return {"mappo", "maddpg", "cmae"}; }
+std::vector<std::string> ActorAlgoNames() {
+  std::vector<std::string> names;
+  for (const learner::AlgorithmActing& acting : learner::AlgorithmsActing()) names.push_back(acting.name);
+  return names;
+}
 
 ActorConfig DefaultActorConfig(absl::string_view scenario, absl::string_view algo) {
   ActorConfig config;
   config.unroll_length = env::TuningOf(scenario).unroll_length.value_or(config.unroll_length);
-  if (algo == "cmae") {
-    config.num_envs = 1;
-    config.unroll_length = kCmaeEpisodeSteps;
+  for (const learner::AlgorithmActing& acting : learner::AlgorithmsActing()) {
+    if (acting.name != (algo.empty() ? learner::AlgorithmsActing().front().name : algo)) continue;
+    config.num_envs = acting.num_envs.value_or(config.num_envs);
+    config.unroll_length = acting.unroll_length.value_or(config.unroll_length);
   }
   return config;
 }

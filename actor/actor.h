@@ -73,15 +73,16 @@ struct ActorConfig {
   bool tls = false;
 };
 
-// The learner algorithms (--algo) whose policies an actor acts with: the
-// learner's names (learner_config.h; tests/defaults_test.py checks they agree).
+// The learner algorithms (--algo) whose policies an actor acts with
+// (learner/algorithms/algorithms.def, the first the default).
 std::vector<std::string> ActorAlgoNames();
 
-// The defaults of an actor of `scenario` collecting for a learner of `algo`:
-// ActorConfig's, joined with the scenario's tuning (env::TuningOf); for
-// cmae one environment and unrolls of CMAE's episode (kCmaeEpisodeSteps,
-// protocol/policy_table.h). The actor binary's flags override them.
-ActorConfig DefaultActorConfig(absl::string_view scenario, absl::string_view algo = "mappo");
+// The defaults of an actor of `scenario` collecting for a learner of `algo`
+// (an unknown one: none of its own): ActorConfig's, joined with the
+// scenario's tuning (env::TuningOf), then the collection the algorithm's loop
+// needs (learner::AlgorithmsActing, beside its code). The actor binary's
+// flags override them.
+ActorConfig DefaultActorConfig(absl::string_view scenario, absl::string_view algo = "");
 
 // Steps vectorised environments with a local copy of the newest policy, gets
 // each unroll's per-agent intrinsic rewards from the reward server (one Score

@@ -30,8 +30,9 @@ namespace {
 const imca::actor::ActorConfig kDefaults;  // Every default's one definition (with the scenario's tuning).
 }  // namespace
 
-ABSL_FLAG(std::string, algo, "mappo",
-          "the learner's algorithm, whose defaults this actor takes (cmae: 1 env, unrolls of its 300-step episode)");
+ABSL_FLAG(std::string, algo, "",
+          "the learner's algorithm, one of --list's algos, whose collection this actor takes (default: the first, "
+          "mappo)");
 ABSL_FLAG(std::optional<int>, envs, std::nullopt, "environments stepped together (default: the algorithm's; --list)");
 ABSL_FLAG(std::optional<int>, unroll_length, std::nullopt, "steps per unroll (default: the scenario's; --list)");
 ABSL_FLAG(int, eval_envs, kDefaults.eval_envs, "evaluation environments (same policy, not trained on)");
@@ -115,8 +116,8 @@ int main(int argc, char** argv) {
   auto scenario = ScenarioFromFlags();
   if (!scenario.ok()) return fail(std::string(scenario.status().message()));
 
-  const std::string algo = absl::GetFlag(FLAGS_algo);
   const std::vector<std::string> algos = actor::ActorAlgoNames();
+  const std::string algo = absl::GetFlag(FLAGS_algo).empty() ? algos.front() : absl::GetFlag(FLAGS_algo);
   if (std::find(algos.begin(), algos.end(), algo) == algos.end()) {
     return fail(absl::StrCat("--algo: '", algo, "' is not one of ", absl::StrJoin(algos, ", ")));
   }

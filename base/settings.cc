@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "absl/flags/parse.h"
+#include "absl/flags/reflection.h"
 #include "absl/strings/match.h"
 #include "absl/strings/strip.h"
 #include "absl/strings/str_cat.h"
@@ -22,6 +24,27 @@ std::string SettingRowsJson(const std::vector<SettingRow>& rows) {
                         .Text());
   }
   return out + "]";
+}
+
+std::vector<std::string> GivenSettings(const std::vector<SettingRow>& rows) {
+  std::vector<std::string> given;
+  for (const SettingRow& row : rows) {
+    const absl::CommandLineFlag* flag = absl::FindCommandLineFlag(row.name);
+    // An optional flag not given unparses as "".
+    if (flag != nullptr && !flag->CurrentValue().empty()) given.push_back(row.name);
+  }
+  return given;
+}
+
+absl::Status RefuseOthersSettings(const std::vector<SettingRow>& own, const std::vector<SettingRow>& others,
+                                  absl::string_view choice_flag, absl::string_view chosen) {
+  for (const SettingRow& row : others) {
+    const bool owned = std::any_of(own.begin(), own.end(), [&](const SettingRow& r) { return r.name == row.name; });
+    if (owned || GivenSettings({row}).empty()) continue;
+    return absl::InvalidArgumentError(absl::StrCat("--", row.name, " is ", row.owner, "'s setting; ", choice_flag,
+                                                   " is ", chosen));
+  }
+  return absl::OkStatus();
 }
 
 std::vector<std::string> BareBooleanFlags(int argc, char** argv, const std::vector<std::string>& names) {
@@ -50,6 +73,16 @@ std::vector<std::string> BareBooleanFlags(int argc, char** argv, const std::vect
     }
   }
   return out;
+}
+
+void ParseCommandLineWithSettings(int argc, char** argv, const std::vector<SettingRow>& rows) {
+  std::vector<std::string> bools;
+  for (const SettingRow& row : rows) {
+    if (row.type == "bool") bools.push_back(row.name);
+  }
+  std::vector<std::string> args = BareBooleanFlags(argc, argv, bools);
+  std::vector<char*> args_argv = ArgvOf(args);
+  absl::ParseCommandLine(static_cast<int>(args.size()), args_argv.data());
 }
 
 std::vector<char*> ArgvOf(std::vector<std::string>& args) {

@@ -1,6 +1,7 @@
 #include "learner/learner_flags.h"
 
 #include <optional>
+#include <utility>
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
@@ -17,45 +18,41 @@ namespace imca::learner {
 
 namespace {
 
-// The shared settings given over `config`.
-void FillShared(LearnerConfig* config) { IMCA_LEARNER_SETTINGS(IMCA_SETTING_FILL) }
+IMCA_SETTING_TABLE(SharedSettings, LearnerConfig, IMCA_LEARNER_SETTINGS)
 
 }  // namespace
 
 std::vector<SettingRow> LearnerSettingRows() {
-  std::vector<SettingRow> rows;
-  rows.push_back({"algo", "enum", "the training algorithm", Algorithms().Names(), ""});
-  IMCA_LEARNER_SETTINGS(IMCA_SETTING_ROW)
+  std::vector<SettingRow> rows = SharedSettings().Rows();
+  rows.insert(rows.begin(), {"algo", "enum", "the training algorithm", Algorithms().Names(), ""});
   rows.push_back(MakeSettingRow<int64_t>(
       "max_batch_mb", "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)"));
-  for (const AlgorithmEntry& entry : Algorithms().entries()) {
-    rows.insert(rows.end(), entry.settings.begin(), entry.settings.end());
-  }
-  return rows;
+  return Algorithms().AllSettings(std::move(rows));
 }
 
 absl::StatusOr<LearnerConfig> LearnerConfigFromFlags(absl::string_view scenario) {
   IMCA_ASSIGN_OR_RETURN(const AlgorithmEntry* entry, Algorithms().Find(absl::GetFlag(FLAGS_algo)));
   IMCA_ASSIGN_OR_RETURN(LearnerConfig config, DefaultLearnerConfig(scenario, entry->name));
-  FillShared(&config);
+  SharedSettings().Fill(&config);
   if (const std::optional<int64_t> mb = absl::GetFlag(FLAGS_max_batch_mb)) {
     if (*mb < 1 || *mb > (int64_t{1} << 30)) return absl::InvalidArgumentError("--max_batch_mb must be in [1, 2^30]");
     config.max_batch_bytes = *mb * 1000 * 1000;
   }
+  IMCA_RETURN_IF_ERROR(
+      RefuseOthersSettings(entry->settings, Algorithms().OthersSettings(entry), "--algo", entry->name));
   IMCA_RETURN_IF_ERROR(entry->fill_from_flags(&config));
   return config;
 }
 
 std::string LearnerConfigJson(const LearnerConfig& config) {
-  JsonObject object;
-  JsonObject* json = &object;
-  json->Add("algo", config.algo);
-  IMCA_LEARNER_SETTINGS(IMCA_SETTING_JSON)
-  json->Add("max_batch_mb", config.max_batch_bytes / 1000000);
+  JsonObject json;
+  json.Add("algo", config.algo);
+  SharedSettings().Json(config, &json);
+  json.Add("max_batch_mb", config.max_batch_bytes / 1000000);
   if (absl::StatusOr<const AlgorithmEntry*> entry = Algorithms().Find(config.algo); entry.ok()) {
-    (*entry)->add_json(config, json);
+    (*entry)->add_json(config, &json);
   }
-  return object.Text();
+  return json.Text();
 }
 
 }  // namespace imca::learner

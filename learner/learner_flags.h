@@ -21,8 +21,8 @@ std::vector<SettingRow> LearnerSettingRows();
 
 // The configuration the flags resolve for `scenario`: DefaultLearnerConfig
 // for it and --algo, then every setting given (an algorithm's settings
-// set its own options; those of another algorithm are not read). Errors:
-// INVALID_ARGUMENT naming the flag.
+// set its own options). Errors: INVALID_ARGUMENT naming the flag, a setting
+// of another algorithm among them.
 absl::StatusOr<LearnerConfig> LearnerConfigFromFlags(absl::string_view scenario);
 
 // The training configuration as flag name: value, the shared settings and

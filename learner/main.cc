@@ -140,13 +140,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(absl::StrCat("IMCA learner: trains the agents with ",
                                             absl::StrJoin(learner::Algorithms().Names(), ", "),
                                             " (--algo) and serves the policy over gRPC"));
-  std::vector<std::string> bools;
-  for (const SettingRow& row : learner::LearnerSettingRows()) {
-    if (row.type == "bool") bools.push_back(row.name);
-  }
-  std::vector<std::string> args = BareBooleanFlags(argc, argv, bools);
-  std::vector<char*> args_argv = ArgvOf(args);
-  absl::ParseCommandLine(static_cast<int>(args.size()), args_argv.data());
+  ParseCommandLineWithSettings(argc, argv, learner::LearnerSettingRows());
   const absl::StatusOr<ServiceFlags> service_flags = ServiceFlagsFromFlags();
   if (!service_flags.ok()) return Fail(std::string(service_flags.status().message()));
   if (service_flags->list) {

@@ -32,6 +32,16 @@ absl::StatusOr<Permutation> ParsePermutation(absl::string_view name) {
 std::string CreditName(Credit credit) { return NameOf(credit, kCreditNames); }
 std::string PermutationName(Permutation permutation) { return NameOf(permutation, kPermutationNames); }
 std::vector<std::string> CreditNames() { return Names(kCreditNames); }
+std::vector<std::string> SettingChoices(Credit) { return Names(kCreditNames); }
+std::vector<std::string> SettingChoices(Permutation) { return Names(kPermutationNames); }
+bool AbslParseFlag(absl::string_view text, Credit* credit, std::string* error) {
+  return ParseFlagName(text, kCreditNames, credit, error);
+}
+bool AbslParseFlag(absl::string_view text, Permutation* permutation, std::string* error) {
+  return ParseFlagName(text, kPermutationNames, permutation, error);
+}
+std::string AbslUnparseFlag(Credit credit) { return CreditName(credit); }
+std::string AbslUnparseFlag(Permutation permutation) { return PermutationName(permutation); }
 std::vector<std::string> PermutationNames() { return Names(kPermutationNames); }
 std::string ScorePhaseName(ScorePhase phase) { return NameOf(phase, kScorePhaseNames); }
 

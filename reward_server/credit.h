@@ -25,6 +25,13 @@ std::string PermutationName(Permutation permutation);
 // Every credit and permutation mode's name (reward_server --list).
 std::vector<std::string> CreditNames();
 std::vector<std::string> PermutationNames();
+// Their flag spelling, the names above (base/settings.h).
+std::vector<std::string> SettingChoices(Credit);
+std::vector<std::string> SettingChoices(Permutation);
+bool AbslParseFlag(absl::string_view text, Credit* credit, std::string* error);
+bool AbslParseFlag(absl::string_view text, Permutation* permutation, std::string* error);
+std::string AbslUnparseFlag(Credit credit);
+std::string AbslUnparseFlag(Permutation permutation);
 
 struct ScorerConfig {
   Credit credit = Credit::kImca;
@@ -40,7 +47,24 @@ struct ScorerConfig {
   // own stream (NamedSeed(seed, actor id, sequence)); learned kinds draw
   // theirs as the deferred updates run, in that order.
   bool deterministic = false;
+  // LibTorch intra-op threads of the process, for the learned kinds (rnd,
+  // sf); set once per process (nn/threads.h).
+  int threads = 1;
 };
+
+// The settings every reward kind shares (base/settings.h): type, flag,
+// field of ScorerConfig, help. A kind's own are its registry entry's
+// (novelty/registry.h).
+#define IMCA_SCORER_SETTINGS(X)                                                                                     \
+  X(::imca::reward::Credit, credit, credit, "credit mode: how the global bonus becomes per-agent bonuses")         \
+  X(::imca::reward::Permutation, permutation, permutation, "permutation mode of homogeneous agents' keys")         \
+  X(double, beta, beta, "coefficient of the global intrinsic reward")                                               \
+  X(double, temperature, temperature, "softmax temperature tau of the credit shares")                               \
+  X(uint64_t, seed, seed, "seed of the random permutation mode")                                                    \
+  X(bool, deterministic, deterministic,                                                                             \
+    "score each policy version's calls against the state its first call found, applying the version's updates in " \
+    "(actor id, sequence) order: with the learner's --deterministic, a run is a function of its configuration")    \
+  X(int, threads, threads, "LibTorch intra-op threads (rnd, sf)")
 
 // p^a = softmax_a(r^a / tau) over n contributions (numerically stable).
 void SoftmaxShares(const float* contributions, int n, double temperature, float* shares);

@@ -10,50 +10,22 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "base/json.h"
+#include "base/settings.h"
 #include "env/env.h"
 #include "env/scenario_flags.h"
 #include "nn/blas_kernels.h"
 #include "reward_server/make_scorer.h"
+#include "reward_server/reward_flags.h"
 #include "reward_server/reward_service.h"
 #include "rpc/grpc_util.h"
 #include "rpc/metrics_flags.h"
 #include "rpc/service_flags.h"
 #include "rpc/transport_flags.h"
 
-ABSL_FLAG(std::string, reward, imca::reward::RewardKinds().front(), "reward kind: count|rnd|sf|eiti|edti (--list)");
 namespace {
-// Every default's one definition (with the reward kind's, DefaultScorerConfig).
-const imca::reward::ScorerConfig kScorer;
-const imca::reward::RewardKindConfig kKinds;
 const imca::reward::ServiceLimits kLimits;
 }  // namespace
 
-ABSL_FLAG(double, eta, kKinds.influence.eta,
-          "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)");
-ABSL_FLAG(double, beta_t, kKinds.influence.beta_t, "eiti: coefficient of the summed influence c_{i->j}");
-ABSL_FLAG(bool, influence_log, kKinds.influence.log_form,
-          "eiti, edti: influence as the paper's log ratio instead of the released code's 1 - 1/x");
-ABSL_FLAG(double, sf_gamma, kKinds.sf.gamma, "sf: successor-feature discount");
-ABSL_FLAG(double, sf_lr, kKinds.sf.learning_rate, "sf: Adam learning rate of psi");
-ABSL_FLAG(double, rnd_lr, kKinds.rnd.learning_rate, "rnd: Adam learning rate of the predictor");
-ABSL_FLAG(double, rnd_update_proportion, kKinds.rnd.update_proportion,
-          "rnd: share of each request's transitions the predictor trains on");
-ABSL_FLAG(int, threads, kKinds.threads, "LibTorch intra-op threads (rnd, sf)");
-ABSL_FLAG(int, rnd_counterfactual_threads, kKinds.rnd.counterfactual_threads,
-          "rnd with imca credit: threads of the counterfactual rows (values do not depend on it)");
-ABSL_FLAG(std::optional<std::string>, credit, std::nullopt,
-          "credit mode: none|independent|shared|imca (default: the reward kind's; --list)");
-ABSL_FLAG(std::string, permutation, imca::reward::PermutationName(kScorer.permutation),
-          "permutation mode: off|random|canonical");
-ABSL_FLAG(std::optional<double>, beta, std::nullopt,
-          "coefficient of the global intrinsic reward (default: the reward kind's, times the scenario's bonus "
-          "scale; --list)");
-ABSL_FLAG(double, temperature, kScorer.temperature, "softmax temperature tau of the credit shares");
-ABSL_FLAG(uint64_t, seed, kScorer.seed, "seed of the random permutation mode");
-ABSL_FLAG(bool, deterministic, kScorer.deterministic,
-          "score each policy version's calls against the state its first call found, applying the version's "
-          "updates in (actor id, sequence) order: with the learner's --deterministic, a run is a function of its "
-          "configuration");
 ABSL_FLAG(std::string, snapshot, "",
           "snapshot file: restored at start (count kinds: with the journal of every increment since, "
           "<snapshot>.journal-*), written periodically and at shutdown");
@@ -75,31 +47,14 @@ int Fail(const std::string& message) {
   return 2;
 }
 
-// The training configuration as flag name: value (--print_config, and per
-// reward kind in --list); passed back as flags it resolves the same.
-std::string ConfigJson(const std::string& kind, const imca::reward::ScorerConfig& c,
-                       const imca::reward::RewardKindConfig& kinds) {
+// The configuration as flag name: value (--print_config, and per reward
+// kind in --list); passed back as flags it resolves the same.
+std::string ConfigJson(const imca::reward::RewardConfig& config) {
   using namespace imca;
-  return JsonObject()
-      .Add("reward", kind)
-      .Add("credit", reward::CreditName(c.credit))
-      .Add("permutation", reward::PermutationName(c.permutation))
-      .AddExact("beta", c.beta)
-      .AddExact("temperature", c.temperature)
-      .Add("seed", c.seed)
-      .Add("deterministic", c.deterministic)
-      .AddExact("eta", kinds.influence.eta)
-      .AddExact("beta_t", kinds.influence.beta_t)
-      .Add("influence_log", kinds.influence.log_form)
-      .AddExact("sf_gamma", kinds.sf.gamma)
-      .AddExact("sf_lr", kinds.sf.learning_rate)
-      .AddExact("rnd_lr", kinds.rnd.learning_rate)
-      .AddExact("rnd_update_proportion", kinds.rnd.update_proportion)
-      .Add("threads", kinds.threads)
-      .Add("rnd_counterfactual_threads", kinds.rnd.counterfactual_threads)
-      .Add("snapshot_every", absl::GetFlag(FLAGS_snapshot_every))
-      .Add("journal_fsync", absl::GetFlag(FLAGS_journal_fsync))
-      .Text();
+  JsonObject json;
+  reward::AddRewardConfigJson(config, &json);
+  json.Add("snapshot_every", absl::GetFlag(FLAGS_snapshot_every)).Add("journal_fsync", absl::GetFlag(FLAGS_journal_fsync));
+  return json.Text();
 }
 
 // --list: one JSON object (reward_defaults by kind, then scenario). Each
@@ -111,10 +66,10 @@ int List(const imca::env::Scenario& scenario) {
   for (const std::string& kind : reward::RewardKinds()) {
     JsonObject by_scenario;
     for (const std::string& name : env::ScenarioNames()) {
-      by_scenario.Raw(name, ConfigJson(kind, reward::DefaultScorerConfig(kind, name), kKinds));
+      by_scenario.Raw(name, ConfigJson(reward::DefaultRewardConfig(kind, name)));
     }
     defaults.Raw(kind, by_scenario.Text());
-    auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{}, {});
+    auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{});
     if (!novelty.ok()) return Fail(absl::StrCat("--list: reward kind ", kind, ": ", novelty.status().message()));
     std::vector<std::string> credits;
     for (const std::string& name : reward::CreditNames()) {
@@ -130,6 +85,7 @@ int List(const imca::env::Scenario& scenario) {
                           .Add("default_reward", reward::RewardKinds().front())
                           .Add("credits", reward::CreditNames())
                           .Add("permutations", reward::PermutationNames())
+                          .Raw("reward_settings", SettingRowsJson(reward::RewardSettingRows()))
                           .Raw("reward_defaults", defaults.Text())
                           .Text()
                           .c_str());
@@ -140,9 +96,9 @@ int List(const imca::env::Scenario& scenario) {
 
 int main(int argc, char** argv) {
   imca::nn::UseTheCpusBlasKernels(argv);  // First: it may re-execute the binary.
-  absl::SetProgramUsageMessage("IMCA reward server: per-agent credited intrinsic rewards over gRPC");
-  absl::ParseCommandLine(argc, argv);
   using namespace imca;
+  absl::SetProgramUsageMessage("IMCA reward server: per-agent credited intrinsic rewards over gRPC");
+  ParseCommandLineWithSettings(argc, argv, reward::RewardSettingRows());
   const absl::StatusOr<ServiceFlags> service_flags = ServiceFlagsFromFlags();
   if (!service_flags.ok()) return Fail(std::string(service_flags.status().message()));
 
@@ -152,35 +108,15 @@ int main(int argc, char** argv) {
   absl::StatusOr<ServerOptions> server_options = ServerOptionsFromFlags();
   if (!server_options.ok()) return Fail(std::string(server_options.status().message()));
 
-  const std::string kind = absl::GetFlag(FLAGS_reward);
-  reward::ScorerConfig config = reward::DefaultScorerConfig(kind, (*scenario)->name());
-  if (const auto credit_name = absl::GetFlag(FLAGS_credit)) {
-    auto credit = reward::ParseCredit(*credit_name);
-    if (!credit.ok()) return Fail(absl::StrCat("--credit: ", credit.status().message()));
-    config.credit = *credit;
-  }
-  auto permutation = reward::ParsePermutation(absl::GetFlag(FLAGS_permutation));
-  if (!permutation.ok()) return Fail(absl::StrCat("--permutation: ", permutation.status().message()));
-  config.permutation = *permutation;
-  if (const auto beta = absl::GetFlag(FLAGS_beta)) config.beta = *beta;
-  config.temperature = absl::GetFlag(FLAGS_temperature);
-  config.seed = absl::GetFlag(FLAGS_seed);
-  config.deterministic = absl::GetFlag(FLAGS_deterministic);
-  reward::RewardKindConfig kinds;
-  kinds.rnd.learning_rate = absl::GetFlag(FLAGS_rnd_lr);
-  kinds.rnd.update_proportion = absl::GetFlag(FLAGS_rnd_update_proportion);
-  kinds.threads = absl::GetFlag(FLAGS_threads);
-  kinds.rnd.counterfactual_threads = absl::GetFlag(FLAGS_rnd_counterfactual_threads);
-  kinds.sf.gamma = absl::GetFlag(FLAGS_sf_gamma);
-  kinds.sf.learning_rate = absl::GetFlag(FLAGS_sf_lr);
-  kinds.influence.eta = absl::GetFlag(FLAGS_eta);
-  kinds.influence.beta_t = absl::GetFlag(FLAGS_beta_t);
-  kinds.influence.log_form = absl::GetFlag(FLAGS_influence_log);
-  auto made = reward::MakeScorer(kind, **scenario, config, kinds);
+  absl::StatusOr<reward::RewardConfig> resolved = reward::RewardConfigFromFlags((*scenario)->name());
+  if (!resolved.ok()) return Fail(std::string(resolved.status().message()));
+  const std::string& kind = resolved->kind;
+  const reward::ScorerConfig& config = resolved->scorer;
+  auto made = reward::MakeScorer(kind, **scenario, config, resolved->options);
   if (!made.ok()) return Fail(absl::StrCat("--reward ", kind, ": ", made.status().message()));
   if (absl::GetFlag(FLAGS_snapshot_every) < 0) return Fail("--snapshot_every must be >= 0");
   if (service_flags->print_config) {
-    std::printf("%s\n", ConfigJson(kind, config, kinds).c_str());
+    std::printf("%s\n", ConfigJson(*resolved).c_str());
     return 0;
   }
   std::unique_ptr<reward::Scorer> scorer = *std::move(made);

@@ -31,6 +31,7 @@
 #include "nn/blas_kernels.h"
 #include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
+#include "reward_server/novelty/count_table.h"
 #include "reward_server/reward_service.h"
 #include "rpc/grpc_util.h"
 

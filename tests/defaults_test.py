@@ -36,7 +36,7 @@ COMMON_WIRING = {"tls_cert", "tls_key", "tls_ca", "tls_client_auth", "tls_server
 
 
 # ./imca train flag -> {program: the binary's flag}.
-PROGRAMS_OF = {flag: programs for flag, programs, _ in options.OPTIONS}
+PROGRAMS_OF = {flag: programs for flag, programs, _ in options.all_options()}
 
 
 def print_config(program, flags):
@@ -49,7 +49,7 @@ def print_config(program, flags):
 
 def overrides(program):
     """{binary flag: ./imca train flag} of the options a user can override."""
-    return {programs[program]: flag for flag, programs, _ in options.OPTIONS if program in programs}
+    return {programs[program]: flag for flag, programs, _ in options.all_options() if program in programs}
 
 
 class OneHomeTest(unittest.TestCase):

@@ -32,6 +32,25 @@ class LauncherErrorsTest(unittest.TestCase):
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
             self.assertIn(flag, r.stderr)
 
+    def test_booleans_take_the_bare_form_and_every_listed_setting_is_an_option(self):
+        self.assertTrue(plan.parse_args(["--deterministic", "--seed", "3"]).deterministic)
+        self.assertFalse(plan.parse_args(["--deterministic=false"]).deterministic)
+        self.assertFalse(plan.parse_args(["--layer-norm", "false"]).layer_norm)
+        # A setting the learner or reward server lists is an option without being restated in tools/.
+        args = plan.parse_args(["--gamma-int", "0.9", "--reward", "rnd", "--rnd-lr", "0.002"])
+        self.assertIn("--gamma_int=0.9", options.program_flags(args, "learner"))
+        self.assertIn("--rnd_lr=0.002", options.program_flags(args, "reward_server"))
+        names = {flag for flag, _, _ in options.all_options()}
+        for program, key in options.LISTED.items():
+            for row in binaries.facts()[key]:
+                self.assertTrue(any(programs.get(program) == row["name"] for _, programs, _ in options.all_options()),
+                                f"{program} --{row['name']} is no ./imca train option")
+        self.assertEqual(len(names), len(options.all_options()))
+        # A setting of another algorithm is refused, naming it.
+        r = run(["--algo", "maddpg", "--layer-norm"])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("--layer-norm", r.stderr)
+
     def test_flags_take_underscores_as_hyphens(self):
         args = plan.parse_args(["--num_agents", "3", "--scenario=spread", "--door_timer=2", "--batch-steps", "64"])
         self.assertEqual((args.num_agents, args.scenario, args.door_timer, args.batch_steps), (3, "spread", 2, 64))

@@ -4,12 +4,14 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "base/json.h"
+#include "base/registry.h"
 #include "base/settings.h"
 #include "env/env.h"
 #include "learner/algorithms/interface.h"
@@ -19,13 +21,13 @@
 namespace imca::learner {
 
 // The learner's algorithms, each registered from its own folder
-// (mappo/mappo_registration.cc, ...) by one call in registry.cc's list, the
+// (mappo/mappo_registration.cc, ...); algorithms.def, one line each, is the
 // one place that names them all. An entry carries everything the learner,
 // its binary and the tools know of an algorithm: nothing outside its folder
 // names it.
 struct AlgorithmEntry {
   std::string name;  // --algo; also metrics.csv's and the columns' owner.
-  std::string help;  // One line: what it is (--algo's help, --list).
+  std::string help;  // One line: what it is (--list).
   // Sets the algorithm's differences from LearnerConfig's defaults on
   // `scenario` (collection, budget) and its own options (config->options) to
   // its defaults there, the scenario's tuning (env::TuningOf) included.
@@ -45,25 +47,50 @@ struct AlgorithmEntry {
   std::function<absl::StatusOr<std::unique_ptr<Algorithm>>(const env::Scenario* scenario,
                                                           const LearnerConfig& config)>
       create;
+
+  bool complete() const { return defaults && fill_from_flags && add_json && create; }
 };
 
-// A closed set of entries. Built once, then read-only (thread-safe to read).
-class AlgorithmRegistry {
+// The learner's registry (base/registry.h): Find's errors name --algo.
+class AlgorithmRegistry : public Registry<AlgorithmEntry> {
  public:
-  // Errors: INVALID_ARGUMENT for an empty or taken name or a missing hook.
-  absl::Status Add(AlgorithmEntry entry);
-  // The entry named `name` ("" names the first registered, the default).
-  // Errors: INVALID_ARGUMENT "--algo: 'x' is not a, b or c".
-  absl::StatusOr<const AlgorithmEntry*> Find(absl::string_view name) const;
-  std::vector<std::string> Names() const;
-  const std::vector<AlgorithmEntry>& entries() const { return entries_; }
-
- private:
-  std::vector<AlgorithmEntry> entries_;
+  AlgorithmRegistry() : Registry("--algo") {}
+  // As Registry::Add, and sets the entry's columns' owner.
+  absl::Status Add(AlgorithmEntry entry) {
+    for (Column& column : entry.columns) column.algorithm = entry.name;
+    return Registry::Add(std::move(entry));
+  }
 };
 
-// The registry of every algorithm (registry.cc's list), built on first use.
+// The registry of every algorithm (algorithms.def), built on first use.
 const AlgorithmRegistry& Algorithms();
+
+// The entry of algorithm `T` (T::Create(scenario, config)) whose own settings
+// are an Options (held in LearnerConfig::options) declared by `table`.
+template <typename T, typename Options>
+AlgorithmEntry MakeAlgorithmEntry(std::string name, std::string help, const SettingTable<Options>& table,
+                                  void (*defaults)(absl::string_view scenario, LearnerConfig* config),
+                                  std::vector<Column> columns) {
+  return {
+      .name = std::move(name),
+      .help = std::move(help),
+      .defaults = defaults,
+      .settings = table.Rows(),
+      .fill_from_flags =
+          [&table](LearnerConfig* config) {
+            table.Fill(&MutableOptions<Options>(config));
+            return absl::OkStatus();
+          },
+      .add_json = [&table](const LearnerConfig& config, JsonObject* json) { table.Json(OptionsOf<Options>(config), json); },
+      .columns = std::move(columns),
+      .create = [](const env::Scenario* scenario,
+                   const LearnerConfig& config) -> absl::StatusOr<std::unique_ptr<Algorithm>> {
+        absl::StatusOr<std::unique_ptr<T>> made = T::Create(scenario, config);
+        if (!made.ok()) return made.status();
+        return std::unique_ptr<Algorithm>(*std::move(made));
+      },
+  };
+}
 
 // The defaults of a learner of `scenario` trained by `algo` (a registered
 // name, "" for the default), in the order they join: LearnerConfig's, the
@@ -72,6 +99,12 @@ const AlgorithmRegistry& Algorithms();
 // resolves (the binary's flags override it, --list prints it per scenario).
 // Errors: INVALID_ARGUMENT for an unknown algorithm.
 absl::StatusOr<LearnerConfig> DefaultLearnerConfig(absl::string_view scenario, absl::string_view algo);
+
+// Each folder's registration (its *_registration.cc), one per line of
+// algorithms.def.
+#define IMCA_ALGORITHM(name, Prefix) absl::Status Register##Prefix(AlgorithmRegistry* registry);
+#include "learner/algorithms/algorithms.def"
+#undef IMCA_ALGORITHM
 
 // Helpers for an entry whose options are a T (MappoOptions, ...): the
 // options `config` holds, refusing another algorithm's (INVALID_ARGUMENT).

@@ -9,6 +9,7 @@
 #include "env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "learner/algorithms/acting.h"
 #include "learner/learner_flags.h"
 
 // A toy algorithm, whole: its options and their one table of settings, its
@@ -36,10 +37,15 @@ namespace {
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 
+IMCA_SETTING_TABLE(ToySettings, ToyOptions, IMCA_TOY_SETTINGS)
+
 // Counts what it is given; trains nothing.
 class Toy final : public Algorithm {
  public:
-  explicit Toy(const ToyOptions& options) : options_(options) {}
+  static absl::StatusOr<std::unique_ptr<Toy>> Create(const env::Scenario*, const LearnerConfig& config) {
+    IMCA_ASSIGN_OR_RETURN(const ToyOptions* options, CheckedOptions<ToyOptions>(config));
+    return std::unique_ptr<Toy>(new Toy(*options));
+  }
   FeaturisedUnroll Featurise(v1::Unroll unroll) const override { return {std::move(unroll), {}, {}, 0}; }
   int64_t IterationBytes(int64_t) const override { return 0; }
   absl::Status Add(const FeaturisedUnroll& unroll) override {
@@ -60,39 +66,17 @@ class Toy final : public Algorithm {
   absl::Status Load(const std::string&) override { return absl::OkStatus(); }
 
  private:
+  explicit Toy(const ToyOptions& options) : options_(options) {}
   const ToyOptions options_;
   int64_t steps_ = 0;
 };
 
+// Its whole registration: what a toy_registration.cc would hold.
 AlgorithmEntry ToyEntry() {
-  return {
-      .name = "toy",
-      .help = "a toy: counts steps",
-      .defaults = [](absl::string_view, LearnerConfig* config) { MutableOptions<ToyOptions>(config).rounds = 5; },
-      .settings =
-          [] {
-            std::vector<SettingRow> rows;
-            IMCA_TOY_SETTINGS(IMCA_SETTING_ROW)
-            return rows;
-          }(),
-      .fill_from_flags =
-          [](LearnerConfig* learner) {
-            ToyOptions* config = &MutableOptions<ToyOptions>(learner);
-            IMCA_TOY_SETTINGS(IMCA_SETTING_FILL)
-            return absl::OkStatus();
-          },
-      .add_json =
-          [](const LearnerConfig& learner, JsonObject* json) {
-            const ToyOptions& config = OptionsOf<ToyOptions>(learner);
-            IMCA_TOY_SETTINGS(IMCA_SETTING_JSON)
-          },
-      .columns = {{"toy_steps", "%.0f", 1, "Steps the toy was given, times its rate.", nullptr, Export::kCsvOnly,
-                   nullptr}},
-      .create = [](const env::Scenario*, const LearnerConfig& config) -> absl::StatusOr<std::unique_ptr<Algorithm>> {
-        IMCA_ASSIGN_OR_RETURN(const ToyOptions* options, CheckedOptions<ToyOptions>(config));
-        return std::unique_ptr<Algorithm>(new Toy(*options));
-      },
-  };
+  return MakeAlgorithmEntry<Toy>(
+      "toy", "a toy: counts steps", ToySettings(),
+      [](absl::string_view, LearnerConfig* config) { MutableOptions<ToyOptions>(config).rounds = 5; },
+      {{"toy_steps", "%.0f", 1, "Steps the toy was given, times its rate.", nullptr, Export::kCsvOnly, nullptr}});
 }
 
 TEST(AlgorithmRegistryTest, ATakenNameOrAMissingHookIsRefused) {
@@ -101,7 +85,7 @@ TEST(AlgorithmRegistryTest, ATakenNameOrAMissingHookIsRefused) {
   EXPECT_THAT(std::string(registry.Add(ToyEntry()).message()), HasSubstr("'toy' is registered twice"));
   AlgorithmEntry nameless = ToyEntry();
   nameless.name = "";
-  EXPECT_FALSE(registry.Add(nameless).ok());
+  EXPECT_THAT(std::string(registry.Add(nameless).message()), HasSubstr("needs a name"));
   AlgorithmEntry hookless = ToyEntry();
   hookless.name = "toy2";
   hookless.create = nullptr;
@@ -162,6 +146,13 @@ TEST(AlgorithmRegistryTest, EverySettingHasOneNameAndEveryEntryOwnsItsRowsAndCol
     for (const SettingRow& row : entry.settings) EXPECT_EQ(row.owner, entry.name) << row.name;
     for (const Column& column : entry.columns) EXPECT_EQ(column.algorithm, entry.name) << column.name;
   }
+}
+
+// The actors' list (algorithms.def, torch-free) is the learner's.
+TEST(AlgorithmRegistryTest, TheActorsKnowTheSameAlgorithms) {
+  std::vector<std::string> acting;
+  for (const AlgorithmActing& a : AlgorithmsActing()) acting.push_back(a.name);
+  EXPECT_EQ(acting, Algorithms().Names());
 }
 
 // Each algorithm's defaults resolve on every scenario and print every

@@ -34,6 +34,14 @@ struct InfluenceConfig {
   bool log_form = false;   // The paper's log ratio instead of the released code's 1 - 1/x.
 };
 
+// EITI's and EDTI's settings (base/settings.h): type, flag, field of
+// InfluenceConfig (its `edti` is the kind's), help.
+#define IMCA_INFLUENCE_SETTINGS(X)                                                                                  \
+  X(double, eta, eta, "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)")            \
+  X(double, beta_t, beta_t, "eiti: coefficient of the summed influence c_{i->j}")                                   \
+  X(bool, influence_log, log_form,                                                                                  \
+    "eiti, edti: influence as the paper's log ratio instead of the released code's 1 - 1/x")
+
 // The EITI/EDTI novelty above. Not thread-safe (Novelty): its CreditScorer
 // serialises calls.
 class InfluenceNovelty final : public CountedNovelty {

@@ -42,9 +42,9 @@ class InfluenceTest : public ::testing::Test {
   std::unique_ptr<CreditScorer> Make(const std::string& kind, bool log_form = false) {
     ScorerConfig config;
     config.credit = Credit::kIndependent;
-    RewardKindConfig kinds;
-    kinds.influence.log_form = log_form;
-    auto scorer = MakeScorer(kind, *scenario_, config, kinds);
+    InfluenceConfig influence;
+    influence.log_form = log_form;
+    auto scorer = MakeScorer(kind, *scenario_, config, influence);
     EXPECT_TRUE(scorer.ok()) << scorer.status();
     return *std::move(scorer);
   }

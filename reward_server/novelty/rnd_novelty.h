@@ -25,6 +25,14 @@ struct RndConfig {
   int counterfactual_threads = 2;
 };
 
+// RND's settings (base/settings.h): type, flag, field of RndConfig, help.
+#define IMCA_RND_SETTINGS(X)                                                                                        \
+  X(double, rnd_lr, learning_rate, "rnd: Adam learning rate of the predictor")                                      \
+  X(double, rnd_update_proportion, update_proportion, "rnd: share of each request's transitions the predictor "    \
+    "trains on")                                                                                                    \
+  X(int, rnd_counterfactual_threads, counterfactual_threads,                                                        \
+    "rnd with imca credit: threads of the counterfactual rows (values do not depend on it)")
+
 // Random network distillation (paper eq. 6; docs/credit.md) on the encoded joint
 // state + one-hot joint action (JointInputEncoder), for CreditScorer
 // (docs/credit.md):

@@ -20,6 +20,11 @@ struct SfConfig {
   int target_update = 20;                // Requests between copies of psi into its target.
 };
 
+// SF's settings (base/settings.h): type, flag, field of SfConfig, help.
+#define IMCA_SF_SETTINGS(X)                                          \
+  X(double, sf_gamma, gamma, "sf: successor-feature discount")      \
+  X(double, sf_lr, learning_rate, "sf: Adam learning rate of psi")
+
 // Successor-feature control (paper eq. 7, 11-13; docs/credit.md), for CreditScorer:
 //   phi: a fixed random network of the joint state (JointInputEncoder, agent
 //   order); psi trained by TD, psi(S_t) -> phi(S_t) + gamma psi'(S_{t+1})

@@ -455,7 +455,7 @@ def same_configuration(figures):
         services = yaml.safe_load(f)["services"]
     argv, flags = [], {}
     for program in binaries.PROGRAMS:
-        train_flag = {programs[program]: flag for flag, programs, _ in options.OPTIONS if program in programs}
+        train_flag = {programs[program]: flag for flag, programs, _ in options.all_options() if program in programs}
         command = services[program]["command"]
         # The training flags only: wiring (addresses, files, secrets) is the deployment's.
         flags[program] = [a for a in command[1:] if a[2:].partition("=")[0] in train_flag]

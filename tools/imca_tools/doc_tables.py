@@ -39,7 +39,23 @@ def metrics_columns(facts):
     return "\n".join(rows) + "\n"
 
 
-TABLES = {"metrics_columns": metrics_columns}
+def training_settings(facts):
+    """Every training setting of the learner and the reward server (their
+    --list rows: each declared once in C++), the ./imca train option that sets
+    it, and whose it is (every algorithm or reward kind, or one)."""
+    launcher = {(program, name): flag for flag, programs, _ in options.all_options(facts)
+                for program, name in programs.items()}
+    rows = ["| binary flag | `./imca train` | of | type | meaning |", "|---|---|---|---|---|"]
+    for program, key in options.LISTED.items():
+        for row in facts[key]:
+            kind = f"one of {', '.join(row['choices'])}" if row["choices"] else row["type"]
+            owner = row["owner"] or "every run"
+            rows.append(f"| {program} `--{row['name']}` | `{launcher.get((program, row['name']), '')}` | {owner} | "
+                        f"{kind} | {row['help']} |")
+    return "\n".join(rows) + "\n"
+
+
+TABLES = {"metrics_columns": metrics_columns, "training_settings": training_settings}
 
 
 def rewrite(text, facts, path):

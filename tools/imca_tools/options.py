@@ -28,29 +28,26 @@ def boolean(text):
 
 # The ./imca train flags that set a binary's flag: (flag, {program: the
 # binary's flag}, argparse keywords; choices as a function of the binaries'
-# --list). Each is passed on only when given (or recorded by a run being
-# resumed), so that the binaries' defaults, in C++ beside what they configure
-# (and the scenario's and reward kind's differences beside their specs), are
-# the one definition: `<binary> --list` prints them per scenario, plan's
+# --list). FIXED_OPTIONS are those that span programs, are renamed, or are
+# not a binary's listed setting; every other setting the learner and reward
+# server list (--list: learner_settings, reward_settings: name, type, help,
+# choices) is an option under its own name, dashed (listed_options), so that a
+# setting declared once in C++ is an option without being restated here. Each
+# is passed on only when given (or recorded by a run being resumed), so that
+# the binaries' defaults, in C++ beside what they configure (and the
+# scenario's, algorithm's and reward kind's differences beside their specs),
+# are the one definition: `<binary> --list` prints them per scenario, plan's
 # parse_args fills what was not given from there, for the record and the
 # progress line, and --help quotes them (default_text). Values are checked by
 # the binaries (`--print_config`), not here. docs/learner.md.
 SCENARIO = ("reward_server", "learner", "actor", "imca_env")  # The env tool renders the episode GIF.
-OPTIONS = [
+FIXED_OPTIONS = [
     ("--scenario", {p: "scenario" for p in SCENARIO}, dict(choices=lambda k: k["scenarios"])),
     ("--num-agents", {p: "num_agents" for p in SCENARIO}, dict(type=int, help="agents")),
     ("--step-limit", {p: "step_limit" for p in SCENARIO}, dict(type=int, help="episode step limit")),
     ("--view-radius", {p: "view_radius" for p in SCENARIO}, dict(type=int, help="partial observation radius (0: full)")),
     ("--door-timer", {p: "door_timer" for p in SCENARIO},
      dict(type=int, help="door scenarios: EDTI's door-open interval doi (docs/scenarios.md)")),
-    ("--reward", {"reward_server": "reward"}, dict(choices=lambda k: list(k["rewards"]), help="global novelty kind")),
-    ("--credit", {"reward_server": "credit"}, dict(choices=lambda k: k["credits"],
-                                                   help="credit mode")),
-    ("--permutation", {"reward_server": "permutation"}, dict(choices=lambda k: k["permutations"])),
-    ("--beta", {"reward_server": "beta"}, dict(type=float, help="coefficient of the global bonus")),
-    ("--eta", {"reward_server": "eta"}, dict(type=float, help="eiti, edti: coefficient of the decentralised curiosity")),
-    ("--beta-t", {"reward_server": "beta_t"}, dict(type=float, help="eiti: coefficient of the summed influence")),
-    ("--temperature", {"reward_server": "temperature"}, dict(type=float, help="softmax temperature of the shares")),
     ("--reward-threads", {"reward_server": "threads"},
      dict(type=positive_int, help="rnd, sf: the reward server's LibTorch intra-op threads")),
     ("--snapshot-every", {"reward_server": "snapshot_every"},
@@ -59,19 +56,7 @@ OPTIONS = [
      dict(type=int, help="seed of the run (actor i acts with seed * 1000 + i + 1)")),
     ("--algo", {"learner": "algo", "actor": "algo"},
      dict(choices=lambda k: k["algos"],
-          help="mappo (on-policy PPO), maddpg (off-policy) or cmae (tabular; docs/learner.md)")),
-    ("--steps", {"learner": "steps"}, dict(type=positive_int, help="budget in joint env steps")),
-    ("--actors", {"learner": "actors"}, dict(type=positive_int, help="actor processes")),
-    ("--batch-steps", {"learner": "batch_steps"}, dict(type=positive_int,
-                                                       help="joint env steps per PPO iteration")),
-    ("--max-batch-mb", {"learner": "max_batch_mb"},
-     dict(type=positive_int, help="learner's cap on an iteration's feature memory (docs/learner.md)")),
-    ("--lr", {"learner": "lr"}, dict(type=float, help="Adam learning rate")),
-    ("--entropy-coef", {"learner": "entropy_coef"}, dict(type=float, help="entropy bonus coefficient")),
-    ("--intrinsic-coef", {"learner": "intrinsic_coef"}, dict(type=float, help="weight of the intrinsic advantage")),
-    ("--separate-optimizers", {"learner": "separate_optimizers"},
-     dict(type=boolean, metavar="BOOL",
-          help="one Adam and grad clip each for actor and critic, false: one over both")),
+          help="the learner's algorithm (docs/learner.md)")),
     ("--deterministic", {"reward_server": "deterministic", "learner": "deterministic"},
      dict(type=boolean, metavar="BOOL",
           help="a run that replays bit for bit: the learner adds each batch in (actor, sequence) order and the "
@@ -81,63 +66,58 @@ OPTIONS = [
      dict(type=boolean, metavar="BOOL",
           help="synchronous collection: every iteration trains on the policy it starts from, each actor acting "
                "batch steps / actors of it")),
-    ("--checkpoint-seconds", {"learner": "checkpoint_seconds"},
-     dict(type=float, help="learner checkpoint interval: what a learner restart loses at most")),
-    ("--objective", {"learner": "objective"}, dict(choices=lambda k: learner_choices(k, "objective"),
-                                                   help="PPO clip against the behaviour policy or a recomputed proximal one")),
-    ("--layer-norm", {"learner": "layer_norm"}, dict(type=boolean, metavar="BOOL",
-                                                     help="LayerNorm on input and hidden layers")),
-    ("--value-heads", {"learner": "value_heads"}, dict(type=int, help="2: extrinsic + intrinsic heads; 1: one")),
-    ("--critic-input", {"learner": "critic_input"}, dict(choices=lambda k: learner_choices(k, "critic_input"), help="centralised critic's input")),
-    ("--time-limit", {"learner": "time_limit"}, dict(choices=lambda k: learner_choices(k, "time_limit"), help="the step limit in the returns")),
-    ("--hidden-gain", {"learner": "hidden_gain"}, dict(type=float, help="orthogonal init gain of hidden layers")),
-    ("--value-clip", {"learner": "value_clip"}, dict(type=float, help="value clipping range (0: off)")),
-    ("--huber-delta", {"learner": "huber_delta"}, dict(type=float, help="Huber value loss delta (0: MSE)")),
-    ("--value-coef", {"learner": "value_coef"}, dict(type=float, help="value loss weight")),
-    ("--max-grad-norm", {"learner": "max_grad_norm"}, dict(type=float, help="gradient-norm clip")),
-    ("--epochs", {"learner": "epochs"}, dict(type=positive_int, help="PPO epochs per iteration")),
-    ("--minibatches", {"learner": "minibatches"}, dict(type=positive_int, help="PPO minibatches per epoch")),
-    ("--max-policy-lag", {"learner": "max_policy_lag"},
-     dict(type=int, help="mappo: drop unrolls older than this many versions")),
     ("--learner-threads", {"learner": "threads"}, dict(type=positive_int,
                                                        help="LibTorch threads of each learner pass")),
-    ("--gamma", {"learner": "gamma"}, dict(type=float, help="extrinsic discount (MADDPG: its only one)")),
-    ("--updates-per-step", {"learner": "updates_per_step"},
-     dict(type=float, help="maddpg: gradient steps per joint env step; actors are slowed to it")),
-    ("--maddpg-share", {"learner": "maddpg_share"}, dict(type=boolean, metavar="BOOL",
-                                                         help="maddpg: one actor and critic for all agents (agent id input)")),
-    ("--maddpg-batch", {"learner": "maddpg_batch"}, dict(type=positive_int,
-                                                         help="maddpg: transitions per gradient step")),
-    ("--maddpg-buffer", {"learner": "maddpg_buffer"}, dict(type=positive_int, help="maddpg: replay capacity")),
-    ("--maddpg-learning-starts", {"learner": "maddpg_learning_starts"},
-     dict(type=positive_int, help="maddpg: replay transitions before the first update")),
-    ("--maddpg-actor-lr", {"learner": "maddpg_actor_lr"}, dict(type=float, help="maddpg: the actors' Adam learning rate")),
-    ("--maddpg-critic-lr", {"learner": "maddpg_critic_lr"}, dict(type=float, help="maddpg: the critics' Adam learning rate")),
-    ("--maddpg-tau", {"learner": "maddpg_tau"}, dict(type=float, help="maddpg: soft target update rate")),
-    ("--concurrent-critic", {"learner": "concurrent_critic"}, dict(type=boolean, metavar="BOOL",
-                                                                   help="critic passes on a second learner thread")),
-    ("--cmae-episodes", {"learner": "cmae_episodes"},
-     dict(type=int, help="cmae: episodes over which acting moves to the exploitation tables")),
-    ("--cmae-gamma", {"learner": "cmae_gamma"}, dict(type=float, help="cmae: discount of its Q-tables")),
-    ("--cmae-explore-lr", {"learner": "cmae_explore_lr"}, dict(type=float, help="cmae: exploration tables' rate")),
-    ("--cmae-exploit-lr", {"learner": "cmae_exploit_lr"}, dict(type=float, help="cmae: exploitation tables' rate")),
-    ("--cmae-replay", {"learner": "cmae_replay"}, dict(type=positive_int, help="cmae: replay capacity")),
-    ("--cmae-goal-samples", {"learner": "cmae_goal_samples"},
-     dict(type=positive_int, help="cmae: replay states a goal is chosen among")),
-    ("--cmae-batch", {"learner": "cmae_batch"}, dict(type=int, help="cmae: transitions of an exploitation fit")),
-    ("--cmae-recip-t", {"learner": "cmae_recip_t"},
-     dict(type=float, help="cmae: reciprocal temperature of the restricted-space choice")),
-    ("--cmae-tracked", {"learner": "cmae_tracked"},
-     dict(type=positive_int, help="cmae: restricted spaces weighed at each choice")),
-    ("--cmae-max-table-mb", {"learner": "cmae_max_table_mb"},
-     dict(type=positive_int, help="cmae: refuse a scenario whose tables could outgrow this")),
+    ("--steps", {"learner": "steps"}, dict(type=positive_int, help="budget in joint env steps")),
+    ("--actors", {"learner": "actors"}, dict(type=positive_int, help="actor processes")),
+    ("--batch-steps", {"learner": "batch_steps"}, dict(type=positive_int,
+                                                       help="joint env steps per PPO iteration")),
     ("--envs-per-actor", {"actor": "envs"}, dict(type=positive_int, help="environments of each actor")),
     ("--unroll-length", {"actor": "unroll_length"}, dict(type=positive_int,
                                                          help="steps per unroll")),
 ]
 
 
-PROGRAMS_OF = {flag: programs for flag, programs, _ in OPTIONS}
+# The programs whose --list rows (learner_settings, reward_settings) are
+# options of ./imca train under their own names, dashed: each setting a binary
+# declares (name, type, help, choices) is an option without being restated
+# here. FIXED_OPTIONS above are the ones that span programs, are renamed or are
+# checked here too.
+LISTED = {"learner": "learner_settings", "reward_server": "reward_settings"}
+_TYPES = {"int": dict(type=int), "float": dict(type=float), "string": {}, "bool": dict(type=boolean, metavar="BOOL")}
+
+
+def listed_options(known):
+    """The options from the binaries' setting rows that FIXED_OPTIONS does
+    not already map (by the binary's flag name), in --list order."""
+    mapped = {(program, name) for _, programs, _ in FIXED_OPTIONS for program, name in programs.items()}
+    out = []
+    for program, key in LISTED.items():
+        for row in known[key]:
+            if (program, row["name"]) in mapped:
+                continue
+            keywords = dict(_TYPES.get(row["type"], {}), help=row["help"])
+            if row["type"] == "enum":
+                keywords["choices"] = row["choices"]
+            out.append(("--" + row["name"].replace("_", "-"), {program: row["name"]}, keywords))
+    return out
+
+
+def all_options(known=None):
+    """Every training option of ./imca train: FIXED_OPTIONS, then the
+    binaries' listed settings (listed_options). Raises ValueError if two map
+    to one ./imca flag."""
+    found = FIXED_OPTIONS + listed_options(known or binaries.facts())
+    flags = [flag for flag, _, _ in found]
+    twice = sorted({flag for flag in flags if flags.count(flag) > 1})
+    if twice:
+        raise ValueError(f"./imca train options named twice: {', '.join(twice)} (rename one in FIXED_OPTIONS)")
+    return found
+
+
+def programs_of(flag):
+    """{program: the binary's flag} of ./imca train option `flag`."""
+    return next(programs for f, programs, _ in all_options() if f == flag)
 
 
 def learner_choices(known, name):
@@ -150,7 +130,7 @@ def dest(flag):
 
 
 def argparse_keywords(flag, programs, keywords, known):
-    """An OPTIONS entry's argparse keywords with its choices from `known`
+    """An all_options entry's argparse keywords with its choices from `known`
     (binaries.facts()) and its default, as the binaries define it, in its help."""
     keywords = dict(keywords)
     if keywords.get("type") is boolean:  # The bare form too, as the binaries take it: --x is --x true.
@@ -199,7 +179,7 @@ def default_text(flag, programs, known):
         table, kind, scenario = known["reward_defaults"], known["default_reward"], known["default_scenario"]
         return _two_level_text(table, name, kind, scenario, both=lambda: _scaled_text(table, name, kind, scenario))
     if program == "actor":
-        values = {s: d.get(name) for s, d in known["actor_defaults"]["mappo"].items()}
+        values = {s: d.get(name) for s, d in known["actor_defaults"][known["default_algo"]].items()}
         return None if None in values.values() else _summary(values, known["default_scenario"])
     if program == "learner":
         return _two_level_text(known["learner_defaults"], name, known["default_algo"], known["default_scenario"],
@@ -252,7 +232,7 @@ def resolved_defaults(args):
 def default_of(flag, args, defaults=None):
     """The binaries' default of option `flag` for the scenario, algorithm and
     reward kind of args (None for a scenario parameter: the scenario's own)."""
-    program, name = next(iter(PROGRAMS_OF[flag].items()))
+    program, name = next(iter(programs_of(flag).items()))
     return (defaults or resolved_defaults(args)).get(program, {}).get(name)
 
 
@@ -279,9 +259,9 @@ def dashed(argv):
 
 def program_flags(args, program):
     """The training flags ./imca train passes to `program`: those of the
-    options given (the rest are the binary's defaults), in OPTIONS order."""
+    options given (the rest are the binary's defaults), in all_options order."""
     flags = []
-    for flag, programs, _ in OPTIONS:
+    for flag, programs, _ in all_options():
         name = programs.get(program)
         if name is None or dest(flag) not in args.given:
             continue
@@ -289,5 +269,16 @@ def program_flags(args, program):
         flags.append(f"--{name}={str(value).lower() if isinstance(value, bool) else value}")
     if program == "learner" and args.reward == "edti":
         flags.append("--edti=true")  # EDTI's value of interaction: the learner's half of --reward edti.
-    return flags
+    return sorted(flags)
+
+
+def held(option_dest, defaults):
+    """Whether the algorithm and reward kind whose `defaults` (resolved_defaults)
+    these are hold the setting of ./imca train option `option_dest`: a listed
+    setting of another algorithm or kind is not (a run recorded every setting
+    before they were told apart)."""
+    for flag, programs, _ in listed_options(binaries.facts()):
+        if dest(flag) == option_dest:
+            return all(name in defaults[program] for program, name in programs.items())
+    return True  # One of FIXED_OPTIONS: every run's.
 

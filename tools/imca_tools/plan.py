@@ -10,16 +10,17 @@ import os
 import re
 
 from . import binaries, options, runs, supervisor
-from .options import OPTIONS, dest
+from .options import dest
 
 
 def parser(description=None):
-    """./imca train's argument parser: the training options (options.OPTIONS,
-    their choices and defaults from the binaries) and the launcher's own."""
+    """./imca train's argument parser: the training options
+    (options.all_options, their choices and defaults from the binaries) and the
+    launcher's own."""
     p = options.OneLineParser(prog="imca train", description=description,
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     known = binaries.facts()
-    for flag, programs, keywords in OPTIONS:
+    for flag, programs, keywords in options.all_options(known):
         p.add_argument(flag, default=None, **options.argparse_keywords(flag, programs, keywords, known))
     p.add_argument("--map", default="", help="map file (default: maps/<scenario>.txt)")
     p.add_argument("--out", default="", help="run folder (default: runs/<timestamp>)")
@@ -55,7 +56,8 @@ def parse_args(argv, description=None):
     known = binaries.facts()
     args = p.parse_args(options.dashed(argv))
     # What the user gave (or the resumed run recorded): the flags passed on.
-    args.given = sorted(dest(flag) for flag, _, _ in OPTIONS if getattr(args, dest(flag)) is not None)
+    training = [flag for flag, _, _ in options.all_options(known)]
+    args.given = sorted(dest(flag) for flag in training if getattr(args, dest(flag)) is not None)
     if args.resume:
         config_path = os.path.join(args.resume, "config.json")
         if not os.path.isfile(config_path) or not os.path.isdir(os.path.join(args.resume, "checkpoints")):
@@ -70,14 +72,16 @@ def parse_args(argv, description=None):
                 given.add(key)
         # Every recorded setting is passed on: the run resumes as it ran,
         # whatever the defaults are now.
-        args.given = sorted(k for k in given if k in {dest(f) for f, _, _ in OPTIONS})
+        args.given = sorted(k for k in given if k in {dest(f) for f in training})
         args.out = args.resume
     # The three choices the other defaults depend on, first.
     for choice in ("scenario", "algo", "reward"):
         if getattr(args, choice) is None:
             setattr(args, choice, known[f"default_{choice}"])
     defaults = options.resolved_defaults(args)
-    for flag, _, _ in OPTIONS:
+    if args.resume:  # A folder recorded every algorithm's settings before they were told apart.
+        args.given = [k for k in args.given if options.held(k, defaults)]
+    for flag in training:
         if getattr(args, dest(flag)) is None:
             setattr(args, dest(flag), options.default_of(flag, args, defaults))
     if args.metrics_port and not 1 <= args.metrics_port <= 65535 - 1 - args.actors:
@@ -110,7 +114,7 @@ def print_config(args, program, flags):
         # The given option the message names first (past its "program: --flag value:" context).
         reason = re.sub(r"^\w+: (--\w+ \S+: )?", "", message)
         named = []
-        for flag, programs, _ in OPTIONS:
+        for flag, programs, _ in options.all_options():
             name = programs.get(program)
             found = re.search(rf"(?<!\w){re.escape(name)}(?!\w)", reason) if name else None
             if found and dest(flag) in args.given:

@@ -29,12 +29,14 @@ def read_json(path):
 def read_config(run_dir):
     """<run_dir>/config.json as the run ran: settings a run from before a
     default changed did not record (or recorded as None: the binary's default
-    then) are filled with what it ran with (V1_DEFAULTS; MAPPO before
+    then, for MAPPO: another algorithm records None for the settings it does
+    not have) are filled with what it ran with (V1_DEFAULTS; MAPPO before
     --algo). OSError or ValueError if there is none."""
     with open(os.path.join(run_dir, "config.json")) as f:
         saved = json.load(f)
+    mappo = saved.get("algo", "mappo") == "mappo"
     for key, old in V1_DEFAULTS.items():
-        if saved.get(key) is None:
+        if key not in saved or (saved[key] is None and mappo):
             saved[key] = old
     saved.setdefault("algo", "mappo")  # Runs from before --algo trained MAPPO.
     return saved

@@ -83,9 +83,6 @@ class Cmae final : public Algorithm {
   std::unique_ptr<Impl> impl_;
 };
 
-class AlgorithmRegistry;
-// Adds CMAE (cmae_registration.cc) to `registry` (registry.cc's list).
-absl::Status RegisterCmae(AlgorithmRegistry* registry);
 
 }  // namespace imca::learner
 

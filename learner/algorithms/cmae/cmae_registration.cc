@@ -1,10 +1,6 @@
 // CMAE's entry in the algorithm registry: its settings (cmae_options.h)
 // as flags, defaults, metrics columns and factory.
-#include <memory>
-#include <utility>
-
 #include "base/settings.h"
-#include "base/status_macros.h"
 #include "learner/algorithms/cmae/cmae.h"
 #include "learner/algorithms/registry.h"
 #include "protocol/policy_table.h"
@@ -15,6 +11,8 @@ namespace imca::learner {
 
 namespace {
 
+IMCA_SETTING_TABLE(Settings, CmaeConfig, IMCA_CMAE_SETTINGS)
+
 // CMAE's own loop: one environment, the tables updated at each episode's
 // end and acted with from the next (one actor acting a 300-step unroll, its
 // episode, per version), for at most cmae_episodes episodes of 300 steps.
@@ -23,23 +21,6 @@ void Defaults(absl::string_view, LearnerConfig* learner) {
   learner->actors = 1;
   learner->batch_steps = kCmaeEpisodeSteps;
   learner->budget_steps = options.total_episodes * kCmaeEpisodeSteps;
-}
-
-absl::Status FillFromFlags(LearnerConfig* learner) {
-  CmaeConfig* config = &MutableOptions<CmaeConfig>(learner);
-  IMCA_CMAE_SETTINGS(IMCA_SETTING_FILL)
-  return absl::OkStatus();
-}
-
-void AddJson(const LearnerConfig& learner, JsonObject* json) {
-  const CmaeConfig& config = OptionsOf<CmaeConfig>(learner);
-  IMCA_CMAE_SETTINGS(IMCA_SETTING_JSON)
-}
-
-std::vector<SettingRow> Rows() {
-  std::vector<SettingRow> rows;
-  IMCA_CMAE_SETTINGS(IMCA_SETTING_ROW)
-  return rows;
 }
 
 // CMAE's own columns of metrics.csv: what Cmae::Train's values hold.
@@ -65,20 +46,7 @@ std::vector<Column> Columns() {
 }  // namespace
 
 absl::Status RegisterCmae(AlgorithmRegistry* registry) {
-  return registry->Add({
-      .name = "cmae",
-      .help = "tabular CMAE as its released gridworld code runs it (docs/baselines.md)",
-      .defaults = Defaults,
-      .settings = Rows(),
-      .fill_from_flags = FillFromFlags,
-      .add_json = AddJson,
-      .columns = Columns(),
-      .create = [](const env::Scenario* scenario,
-                   const LearnerConfig& config) -> absl::StatusOr<std::unique_ptr<Algorithm>> {
-        IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Cmae> algorithm, Cmae::Create(scenario, config));
-        return std::unique_ptr<Algorithm>(std::move(algorithm));
-      },
-  });
+  return registry->Add(MakeAlgorithmEntry<Cmae>("cmae", "tabular CMAE as its released gridworld code runs it (docs/baselines.md)", Settings(), Defaults, Columns()));
 }
 
 }  // namespace imca::learner

@@ -84,9 +84,6 @@ class Maddpg final : public Algorithm {
   std::unique_ptr<Impl> impl_;
 };
 
-class AlgorithmRegistry;
-// Adds MADDPG (maddpg_registration.cc) to `registry` (registry.cc's list).
-absl::Status RegisterMaddpg(AlgorithmRegistry* registry);
 
 }  // namespace imca::learner
 

@@ -70,9 +70,6 @@ class Mappo final : public Algorithm {
 // global state, plus the agent id).
 int MappoCriticDim(const env::Scenario& scenario, const LearnerConfig& config);
 
-class AlgorithmRegistry;
-// Adds MAPPO (mappo_registration.cc) to `registry` (registry.cc's list).
-absl::Status RegisterMappo(AlgorithmRegistry* registry);
 
 }  // namespace imca::learner
 

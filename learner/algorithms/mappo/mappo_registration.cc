@@ -1,11 +1,9 @@
 // MAPPO's entry in the algorithm registry: its settings (mappo_options.h)
 // as flags, defaults, metrics columns and factory.
-#include <memory>
 #include <utility>
 
 #include "base/enum_names.h"
 #include "base/settings.h"
-#include "base/status_macros.h"
 #include "env/env.h"
 #include "learner/algorithms/mappo/mappo.h"
 #include "learner/algorithms/registry.h"
@@ -19,6 +17,8 @@ namespace {
 constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "state"},
                                                        {CriticInput::kJointObs, "joint_obs"}};
 
+IMCA_SETTING_TABLE(Settings, MappoOptions, IMCA_MAPPO_SETTINGS)
+
 // The scenario's tuning of PPO (env::TuningOf, beside the scenario's spec).
 void Defaults(absl::string_view scenario, LearnerConfig* learner) {
   MappoOptions& options = MutableOptions<MappoOptions>(learner);
@@ -27,27 +27,16 @@ void Defaults(absl::string_view scenario, LearnerConfig* learner) {
   options.ppo.separate_optimizers = tuning.separate_optimizers.value_or(options.ppo.separate_optimizers);
 }
 
-absl::Status FillFromFlags(LearnerConfig* learner) {
-  MappoOptions* config = &MutableOptions<MappoOptions>(learner);
-  IMCA_MAPPO_SETTINGS(IMCA_SETTING_FILL)
-  if (config->edti) {
-    if (config->ppo.value_heads == 1) {
+// --edti gives the critic its third head.
+absl::Status EdtiHeads(LearnerConfig* learner) {
+  MappoOptions& options = MutableOptions<MappoOptions>(learner);
+  if (options.edti) {
+    if (options.ppo.value_heads == 1) {
       return absl::InvalidArgumentError("--value_heads 1 cannot be used with --edti (it needs 3)");
     }
-    config->ppo.value_heads = 3;
+    options.ppo.value_heads = 3;
   }
   return absl::OkStatus();
-}
-
-void AddJson(const LearnerConfig& learner, JsonObject* json) {
-  const MappoOptions& config = OptionsOf<MappoOptions>(learner);
-  IMCA_MAPPO_SETTINGS(IMCA_SETTING_JSON)
-}
-
-std::vector<SettingRow> Rows() {
-  std::vector<SettingRow> rows;
-  IMCA_MAPPO_SETTINGS(IMCA_SETTING_ROW)
-  return rows;
 }
 
 // MAPPO's own columns of metrics.csv: what Mappo::Train's values hold.
@@ -89,20 +78,14 @@ bool AbslParseFlag(absl::string_view text, PpoObjective* objective, std::string*
 std::string AbslUnparseFlag(PpoObjective objective) { return PpoObjectiveName(objective); }
 
 absl::Status RegisterMappo(AlgorithmRegistry* registry) {
-  return registry->Add({
-      .name = "mappo",
-      .help = "on-policy multi-agent PPO: a shared actor, a centralised critic (docs/learner.md)",
-      .defaults = Defaults,
-      .settings = Rows(),
-      .fill_from_flags = FillFromFlags,
-      .add_json = AddJson,
-      .columns = Columns(),
-      .create = [](const env::Scenario* scenario,
-                   const LearnerConfig& config) -> absl::StatusOr<std::unique_ptr<Algorithm>> {
-        IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Mappo> mappo, Mappo::Create(scenario, config));
-        return std::unique_ptr<Algorithm>(std::move(mappo));
-      },
-  });
+  AlgorithmEntry entry = MakeAlgorithmEntry<Mappo>(
+      "mappo", "on-policy multi-agent PPO: a shared actor, a centralised critic (docs/learner.md)", Settings(),
+      Defaults, Columns());
+  entry.fill_from_flags = [fill = std::move(entry.fill_from_flags)](LearnerConfig* config) {
+    absl::Status filled = fill(config);
+    return filled.ok() ? EdtiHeads(config) : filled;
+  };
+  return registry->Add(std::move(entry));
 }
 
 }  // namespace imca::learner

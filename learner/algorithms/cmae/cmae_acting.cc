@@ -1,0 +1,9 @@
+#include "learner/algorithms/acting.h"
+#include "protocol/policy_table.h"
+
+namespace imca::learner {
+
+// CMAE's loop: one environment, one unroll per episode (its step limit).
+AlgorithmActing CmaeActing() { return {"cmae", 1, kCmaeEpisodeSteps}; }
+
+}  // namespace imca::learner
