@@ -810,6 +810,10 @@ absl::StatusOr<std::unique_ptr<Scenario>> MakeScenarioWithMap(const ScenarioConf
     return absl::InvalidArgumentError(absl::StrCat("unknown scenario '", config.name, "' (available: ",
                                                    absl::StrJoin(ScenarioNames(), ", "), ")"));
   }
+  if (config.num_agents < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("num_agents ", config.num_agents, " is negative (0: the scenario's default)"));
+  }
   const int num_agents = config.num_agents > 0 ? config.num_agents : spec->second.default_agents;
   if (num_agents > kMaxAgents) {
     return absl::InvalidArgumentError(absl::StrCat("num_agents ", num_agents, " above ", kMaxAgents));

@@ -53,6 +53,12 @@ TEST(GridMapTest, BadCharacterNamesLineAndColumn) {
   EXPECT_THAT(map.status().message(), HasSubstr("bad.txt:3:2"));
 }
 
+TEST(GridMapTest, ANonPrintableByteIsEscapedInTheMessage) {
+  auto map = GridMap::Parse("###\n#\xbf#\n###\n", "latin1.txt");
+  ASSERT_FALSE(map.ok());
+  EXPECT_THAT(std::string(map.status().message()), HasSubstr("latin1.txt:2:2: unknown map character '\\xbf'"));
+}
+
 TEST(GridMapTest, RaggedRowIsAnError) {
   auto map = GridMap::Parse("###\n#.\n", "ragged.txt");
   ASSERT_FALSE(map.ok());
@@ -61,6 +67,14 @@ TEST(GridMapTest, RaggedRowIsAnError) {
 
 TEST(GridMapTest, MissingFileIsNotFound) {
   EXPECT_EQ(GridMap::Load("/nonexistent/map.txt").status().code(), absl::StatusCode::kNotFound);
+}
+
+TEST(ScenarioTest, ANegativeAgentCountIsRejected) {
+  ScenarioConfig config;
+  config.num_agents = -1;
+  auto scenario = MakeScenario(config, DefaultMapDir());
+  ASSERT_FALSE(scenario.ok());
+  EXPECT_THAT(std::string(scenario.status().message()), HasSubstr("num_agents -1 is negative"));
 }
 
 TEST(ScenarioTest, UnknownScenarioIsRejected) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "base/atomic_file.h"
@@ -79,7 +80,7 @@ absl::StatusOr<GridMap> GridMap::Parse(absl::string_view text, absl::string_view
         if (switch_lines[sw].first == 0) switch_lines[sw] = {line_no, col + 1};
       } else {
         return absl::InvalidArgumentError(
-            absl::StrCat(source, ":", line_no, ":", col + 1, ": unknown map character '", std::string(1, c),
+            absl::StrCat(source, ":", line_no, ":", col + 1, ": unknown map character '", absl::CHexEscape(std::string(1, c)),
                          "' (legend: # . 1-9 @ S T X O Z G A-F a-f *)"));
       }
       max_door = std::max<int>(max_door, std::max<int>(door, sw == kEveryDoor ? -1 : sw));

@@ -27,8 +27,8 @@ std::string AbslUnparseFlag(TimeLimit limit);
 // budget, checkpoints, the returns. An algorithm's own settings are its own
 // struct, in its folder, held in `options` (learner/algorithms/registry.h).
 struct LearnerConfig {
-  // A registered algorithm's name (learner/algorithms/registry.cc); empty:
-  // the first registered.
+  // A registered algorithm's name (learner/algorithms/algorithms.def);
+  // empty: the first registered.
   std::string algo;
   // The algorithm's own settings, of the type its registry entry names; none:
   // that type's defaults (OptionsOf below).

@@ -66,6 +66,26 @@ class LauncherErrorsTest(unittest.TestCase):
         self.assertIn("/nonexistent/map.txt", r.stderr)
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
 
+    def test_malformed_maps_and_run_folders_are_one_line(self):
+        with tempfile.TemporaryDirectory() as out:
+            bad_map = os.path.join(out, "latin1.txt")
+            with open(bad_map, "wb") as f:
+                f.write(b"#####\n#1\xbf2#\n#####\n")
+            r = run(["--map", bad_map])
+            self.assertEqual(r.returncode, 2, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn("latin1.txt:2:3: unknown map character '\\xbf'", r.stderr)
+            for text in (b"{not json", b"[1, 2]", b"\xff\xfe"):
+                run_dir = os.path.join(out, "run")
+                os.makedirs(os.path.join(run_dir, "checkpoints"), exist_ok=True)
+                with open(os.path.join(run_dir, "config.json"), "wb") as f:
+                    f.write(text)
+                r = run(["--resume", run_dir])
+                self.assertEqual(r.returncode, 2, (text, r.stderr))
+                self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+                self.assertIn("config.json", r.stderr)
+                self.assertIn("--resume", r.stderr)
+
     def test_port_in_use_is_one_line(self):
         with socket.socket() as s, tempfile.TemporaryDirectory() as out:
             s.bind(("127.0.0.1", 0))

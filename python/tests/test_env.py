@@ -158,6 +158,7 @@ def test_actions_of_any_integer_type_and_layout_step_alike():
     (lambda: imca.make("multi_room", 1, door_timer=31), ValueError, "door"),
     (lambda: imca.make("coop_nav", 1, map="/no/such/map.txt"), ValueError, "/no/such/map.txt"),
     (lambda: imca.make("coop_nav", 1, num_agents=40), ValueError, "agent"),
+    (lambda: imca.make("coop_nav", 1, num_agents=-1), ValueError, "num_agents -1 is negative"),
 ])
 def test_bad_construction_raises_naming_the_argument(call, error, words):
     with pytest.raises(error) as raised:

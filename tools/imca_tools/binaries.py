@@ -61,7 +61,8 @@ def facts():
     merged = {}
     for program in PROGRAMS:
         try:
-            out = subprocess.run([path(program), "--list"], capture_output=True, text=True, timeout=120)
+            out = subprocess.run([path(program), "--list"], capture_output=True, text=True,
+                                 errors="backslashreplace", timeout=120)
         except (OSError, subprocess.SubprocessError) as e:
             raise LaunchError(f"cannot run {path(program)} --list ({e}); build first: ./imca build") from e
         if out.returncode != 0:
@@ -96,7 +97,8 @@ def print_config(program, flags):
     """`program --print_config` with `flags`: the configuration it resolves,
     validated by the binary itself (the one place that checks values).
     Refused (its last stderr line) if it refuses them."""
-    out = subprocess.run([path(program), *flags, "--print_config"], capture_output=True, text=True, timeout=120)
+    out = subprocess.run([path(program), *flags, "--print_config"], capture_output=True, text=True,
+                         errors="backslashreplace", timeout=120)
     if out.returncode != 0:
         raise Refused((out.stderr.strip().splitlines() or [f"exit {out.returncode}"])[-1])
     return json.loads(out.stdout)

@@ -62,7 +62,10 @@ def parse_args(argv, description=None):
         config_path = os.path.join(args.resume, "config.json")
         if not os.path.isfile(config_path) or not os.path.isdir(os.path.join(args.resume, "checkpoints")):
             p.error(f"argument --resume: '{args.resume}' holds no run (config.json and checkpoints/)")
-        saved = runs.read_config(args.resume)
+        try:
+            saved = runs.read_config(args.resume)
+        except (OSError, ValueError) as e:  # Not JSON, or not one object.
+            p.error(f"argument --resume: {config_path}: not a run's config ({str(e).splitlines()[0]})")
         given = set(args.given)
         for key, value in saved.items():
             if key in ("steps", "out", "resume", "reward_port", "learner_port", "given", "resolved"):

@@ -32,8 +32,10 @@ def read_config(run_dir):
     then, for MAPPO: another algorithm records None for the settings it does
     not have) are filled with what it ran with (V1_DEFAULTS; MAPPO before
     --algo). OSError or ValueError if there is none."""
-    with open(os.path.join(run_dir, "config.json")) as f:
+    with open(os.path.join(run_dir, "config.json"), errors="backslashreplace") as f:
         saved = json.load(f)
+    if not isinstance(saved, dict):
+        raise ValueError(f"a JSON {type(saved).__name__}, not an object")
     mappo = saved.get("algo", "mappo") == "mappo"
     for key, old in V1_DEFAULTS.items():
         if key not in saved or (saved[key] is None and mappo):
