@@ -28,8 +28,10 @@ std::vector<std::string> ActorAlgoNames() {
 ActorConfig DefaultActorConfig(absl::string_view scenario, absl::string_view algo) {
   ActorConfig config;
   config.unroll_length = env::TuningOf(scenario).unroll_length.value_or(config.unroll_length);
-  for (const learner::AlgorithmActing& acting : learner::AlgorithmsActing()) {
-    if (acting.name != (algo.empty() ? learner::AlgorithmsActing().front().name : algo)) continue;
+  const std::vector<learner::AlgorithmActing>& algorithms = learner::AlgorithmsActing();
+  const absl::string_view name = algo.empty() ? absl::string_view(algorithms.front().name) : algo;
+  for (const learner::AlgorithmActing& acting : algorithms) {
+    if (acting.name != name) continue;
     config.num_envs = acting.num_envs.value_or(config.num_envs);
     config.unroll_length = acting.unroll_length.value_or(config.unroll_length);
   }

@@ -2,6 +2,7 @@
 #define IMCA_BASE_REGISTRY_H_
 
 #include <algorithm>
+#include <any>
 #include <string>
 #include <utility>
 #include <vector>
@@ -14,6 +15,15 @@
 #include "base/settings.h"
 
 namespace imca {
+
+// The T that `options` holds (an entry's own settings, std::any): null if it
+// holds none; INVALID_ARGUMENT if it holds another type (another entry's).
+template <typename T>
+absl::StatusOr<const T*> HeldOptions(const std::any& options) {
+  if (!options.has_value()) return nullptr;
+  if (const T* held = std::any_cast<T>(&options)) return held;
+  return absl::InvalidArgumentError("the options held are another entry's: another algorithm's options or another reward kind's");
+}
 
 // A closed family of named entries (the learner's algorithms, the reward
 // server's novelty kinds): built once by a list of registration calls, then

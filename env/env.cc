@@ -160,7 +160,7 @@ class MultiRoom final : public DoorScenario {
   absl::string_view name() const override { return "multi_room"; }
 };
 
-// EDTI's Pass and ThreePass (BASELINES.md 4.1, 4.2): 4 actions, agents move
+// EDTI's Pass and ThreePass (docs/scenarios.md, "pass and secret_room"): 4 actions, agents move
 // independently and may share a cell, doi 8 (the default of EDTI's code).
 class Pass final : public DoorScenario {
  public:
@@ -176,8 +176,8 @@ class SecretRoom final : public DoorScenario {
   absl::string_view name() const override { return "secret_room"; }
 };
 
-// The task versions of the methods published after EDTI (BASELINES.md 4.3
-// and 6.2), as CMAE's env/rooms.py and env/secret_rooms.py and MACE's
+// The task versions of the methods published after EDTI (docs/scenarios.md,
+// "The task versions of CMAE and MACE"), as CMAE's env/rooms.py and env/secret_rooms.py and MACE's
 // room.py and secret_rooms.py run them: 4 actions, agents that may share a
 // cell and start on fixed cells, every door closed at the start. Each step
 // the agents move through the doors of the previous step; then every door is
@@ -253,7 +253,7 @@ class SwitchRooms final : public Scenario {
   std::vector<int32_t> switch_order_;
 };
 
-// CMAE's push_box (env/push_box.py, BASELINES.md 4.3): a 3x3 box (entity 0,
+// CMAE's push_box (CMAE's env/push_box.py): a 3x3 box (entity 0,
 // its centre cell; its nine cells block the agents) that moves one cell in a
 // direction when at least two agents, each beside the box on the opposite
 // side and level with it, push that way in the same step, unless a wall lies
@@ -458,8 +458,8 @@ std::string NeedDoors(const GridMap& map) {
   return "";
 }
 
-// A switch-room variant: its rules are the released code's (BASELINES.md 4.3,
-// 6.2), its layout the map's (maps/<name>.txt).
+// A switch-room variant: its rules are the released code's (docs/scenarios.md,
+// "The task versions of CMAE and MACE"), its layout the map's (maps/<name>.txt).
 ScenarioSpec SwitchRoomSpec(const std::string& name, SwitchRoomRules rules, int agents,
                             ScenarioTuning tuning = {}) {
   return {agents, NeedDoors,

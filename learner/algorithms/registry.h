@@ -12,6 +12,7 @@
 #include "absl/strings/string_view.h"
 #include "base/json.h"
 #include "base/registry.h"
+#include "base/status_macros.h"
 #include "base/settings.h"
 #include "env/env.h"
 #include "learner/algorithms/interface.h"
@@ -38,8 +39,8 @@ struct AlgorithmEntry {
   std::vector<SettingRow> settings;
   std::function<absl::Status(LearnerConfig* config)> fill_from_flags;
   std::function<void(const LearnerConfig& config, JsonObject* json)> add_json;
-  // Its own columns of metrics.csv (Column::algorithm is set to `name` when
-  // registered): what its IterationStats::values hold.
+  // Its own columns of metrics.csv (Column::algorithm its name): what its
+  // IterationStats::values hold.
   std::vector<Column> columns;
   // The algorithm for `scenario` (which must outlive it) with `config`.
   // Errors: INVALID_ARGUMENT for a configuration it refuses (options of
@@ -55,11 +56,6 @@ struct AlgorithmEntry {
 class AlgorithmRegistry : public Registry<AlgorithmEntry> {
  public:
   AlgorithmRegistry() : Registry("--algo") {}
-  // As Registry::Add, and sets the entry's columns' owner.
-  absl::Status Add(AlgorithmEntry entry) {
-    for (Column& column : entry.columns) column.algorithm = entry.name;
-    return Registry::Add(std::move(entry));
-  }
 };
 
 // The registry of every algorithm (algorithms.def), built on first use.
@@ -71,6 +67,7 @@ template <typename T, typename Options>
 AlgorithmEntry MakeAlgorithmEntry(std::string name, std::string help, const SettingTable<Options>& table,
                                   void (*defaults)(absl::string_view scenario, LearnerConfig* config),
                                   std::vector<Column> columns) {
+  for (Column& column : columns) column.algorithm = name;
   return {
       .name = std::move(name),
       .help = std::move(help),
@@ -110,10 +107,8 @@ absl::StatusOr<LearnerConfig> DefaultLearnerConfig(absl::string_view scenario, a
 // options `config` holds, refusing another algorithm's (INVALID_ARGUMENT).
 template <typename T>
 absl::StatusOr<const T*> CheckedOptions(const LearnerConfig& config) {
-  if (config.options.has_value() && OptionsIf<T>(config) == nullptr) {
-    return absl::InvalidArgumentError("the learner config holds another algorithm's options (config.options)");
-  }
-  return &OptionsOf<T>(config);
+  IMCA_ASSIGN_OR_RETURN(const T* held, HeldOptions<T>(config.options));
+  return held != nullptr ? held : &OptionsOf<T>(config);
 }
 
 }  // namespace imca::learner

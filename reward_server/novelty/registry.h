@@ -62,9 +62,9 @@ const NoveltyRegistry& Novelties();
 // INVALID_ARGUMENT if it holds another type (another kind's options).
 template <typename T>
 absl::StatusOr<T> KindOptions(const std::any& options) {
-  if (!options.has_value()) return T();
-  if (const T* held = std::any_cast<T>(&options)) return *held;
-  return absl::InvalidArgumentError("the kind options are another reward kind's");
+  absl::StatusOr<const T*> held = HeldOptions<T>(options);
+  if (!held.ok()) return held.status();
+  return *held != nullptr ? **held : T();
 }
 
 // The novelty of a kind whose options are an Options.
