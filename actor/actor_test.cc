@@ -189,7 +189,7 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
   FlakyLearnerService learner_service(learner->get(), /*drop_ack_of=*/3, /*hang_on=*/6);
 
   reward::ScorerConfig scorer_config;
-  scorer_config.credit = reward::Credit::kImca;
+  scorer_config.credit = "imca";
   auto real_scorer = reward::MakeScorer("count", **scenario, scorer_config);
   ASSERT_TRUE(real_scorer.ok()) << real_scorer.status();
   FailingOnceScorer scorer(*std::move(real_scorer));

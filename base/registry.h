@@ -2,8 +2,12 @@
 #define IMCA_BASE_REGISTRY_H_
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <initializer_list>
 #include <any>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -12,7 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
-#include "base/settings.h"
+#include "base/setting_row.h"
 
 namespace imca {
 
@@ -25,11 +29,17 @@ absl::StatusOr<const T*> HeldOptions(const std::any& options) {
   return absl::InvalidArgumentError("the options held are another entry's: another algorithm's options or another reward kind's");
 }
 
+// Whether an Entry carries its own settings (`std::vector<SettingRow> settings`).
+template <typename Entry, typename = void>
+struct HasSettings : std::false_type {};
+template <typename Entry>
+struct HasSettings<Entry, std::void_t<decltype(std::declval<Entry&>().settings)>> : std::true_type {};
+
 // A closed family of named entries (the learner's algorithms, the reward
-// server's novelty kinds): built once by a list of registration calls, then
-// read-only (thread-safe to read). An Entry has `std::string name`,
-// `std::vector<SettingRow> settings` and `bool complete() const` (its hooks
-// are set).
+// server's novelty kinds and credit rules, the scenarios): built once by a
+// list of registration calls (BuildRegistry), then read-only (thread-safe to
+// read). An Entry has `std::string name` and `bool complete() const` (its
+// hooks are set), and may have `std::vector<SettingRow> settings`.
 template <typename Entry>
 class Registry {
  public:
@@ -46,7 +56,9 @@ class Registry {
       }
     }
     if (!entry.complete()) return absl::InvalidArgumentError(absl::StrCat(flag_, ": '", entry.name, "' lacks a hook"));
-    for (SettingRow& row : entry.settings) row.owner = entry.name;
+    if constexpr (HasSettings<Entry>::value) {
+      for (SettingRow& row : entry.settings) row.owner = entry.name;
+    }
     entries_.push_back(std::move(entry));
     return absl::OkStatus();
   }
@@ -73,6 +85,7 @@ class Registry {
     return names;
   }
   const std::vector<Entry>& entries() const { return entries_; }
+  const std::string& flag() const { return flag_; }
 
   // `rows` (the choosing flag's and the shared settings'), then every
   // entry's settings, a row several entries share (one table) once, its
@@ -105,6 +118,24 @@ class Registry {
   std::string flag_;
   std::vector<Entry> entries_;
 };
+
+// The registry R (a Registry<Entry> whose default constructor names its
+// flag) of the entries the `registrations` add, in their order: a list's
+// lines, one per member, the first the default. A failed registration is a
+// programming error: it aborts at the first use, naming the flag and the
+// problem.
+template <typename R>
+R BuildRegistry(std::initializer_list<absl::Status (*)(R*)> registrations) {
+  R registry;
+  for (absl::Status (*add)(R*) : registrations) {
+    const absl::Status added = add(&registry);
+    if (!added.ok()) {
+      std::fprintf(stderr, "%s registry: %s\n", registry.flag().c_str(), std::string(added.message()).c_str());
+      std::abort();
+    }
+  }
+  return registry;
+}
 
 }  // namespace imca
 

@@ -4,8 +4,8 @@
 // A configuration's settings, each declared once. Beside a config struct, a
 // table of rows as an X-macro:
 //
-//   #define IMCA_FOO_SETTINGS(X)                                   \
-//     X(int, epochs, epochs, "PPO epochs per iteration")           \
+//   #define IMCA_FOO_SETTINGS(X) (a backslash ends each line but the last)
+//     X(int, epochs, epochs, "PPO epochs per iteration")
 //     X(double, lr, ppo.learning_rate, "Adam learning rate")
 //
 // A row is (type, name, field, help): the value's type, the name of its flag
@@ -36,18 +36,9 @@
 #include "absl/status/status.h"
 #include "absl/strings/string_view.h"
 #include "base/json.h"
+#include "base/setting_row.h"
 
 namespace imca {
-
-// One setting as --list prints it.
-struct SettingRow {
-  std::string name;
-  std::string type;  // "bool", "int", "float", "string" or "enum".
-  std::string help;
-  std::vector<std::string> choices;  // An enum's names; empty otherwise.
-  // The family member it belongs to (an --algo name, say), or "" for all.
-  std::string owner;
-};
 
 template <typename T>
 SettingRow MakeSettingRow(const char* name, const char* help) {

@@ -17,6 +17,9 @@ namespace imca::env {
 
 // Actions. Scenarios with 4 actions (pass) use the first four (no stay).
 enum Action : int32_t { kUp = 0, kDown = 1, kLeft = 2, kRight = 3, kStay = 4 };
+// The cell offsets of each action: row, column.
+inline constexpr int kActionRow[5] = {-1, 1, 0, 0, 0};
+inline constexpr int kActionCol[5] = {0, 0, -1, 1, 0};
 inline constexpr int kMaxAgents = 9;
 inline constexpr int kMaxNpcs = 4;
 
@@ -153,16 +156,17 @@ class Scenario {
   std::vector<int32_t> spawn_pool_;
 };
 
-// Names of the available scenarios.
+// Names of the available scenarios (env/scenarios/scenarios.def), in
+// alphabetical order.
 std::vector<std::string> ScenarioNames();
 
 // Where a scenario's training differs from the components' general defaults
 // (LearnerConfig, PpoConfig, ActorConfig, reward::ScorerConfig): EnvPool's
-// per-env default config, kept beside the scenario's spec. Unset fields take
-// the general default; flags given by a user win over both
-// (DefaultLearnerConfig, DefaultActorConfig, reward::DefaultScorerConfig
-// resolve them). docs/learner.md, "Defaults", has how
-// each was measured.
+// per-env default config, in the scenario's registry entry (env/scenarios/,
+// beside its rules). Unset fields take the general default; flags given by a
+// user win over both (DefaultLearnerConfig, DefaultActorConfig,
+// reward::DefaultScorerConfig resolve them). docs/learner.md, "Defaults",
+// has how each was measured.
 struct ScenarioTuning {
   std::optional<int64_t> batch_steps;        // LearnerConfig::batch_steps.
   std::optional<double> learning_rate;       // PpoConfig::learning_rate.

@@ -12,18 +12,18 @@ namespace imca::fuzz {
 struct ScoreKind {
   const char* scenario;
   const char* reward;
-  reward::Credit credit;
+  std::string credit;
 };
 
 inline const std::vector<ScoreKind>& ScoreKinds() {
   static const std::vector<ScoreKind> kinds = {
-      {"coop_nav", "count", reward::Credit::kImca},
-      {"coop_nav", "count", reward::Credit::kShared},
-      {"predator_prey", "count", reward::Credit::kNone},
-      {"pass", "eiti", reward::Credit::kIndependent},
-      {"secret_room", "edti", reward::Credit::kIndependent},
-      {"twin_buttons", "rnd", reward::Credit::kImca},
-      {"multi_room", "sf", reward::Credit::kImca},
+      {"coop_nav", "count", "imca"},
+      {"coop_nav", "count", "shared"},
+      {"predator_prey", "count", "none"},
+      {"pass", "eiti", "independent"},
+      {"secret_room", "edti", "independent"},
+      {"twin_buttons", "rnd", "imca"},
+      {"multi_room", "sf", "imca"},
   };
   return kinds;
 }

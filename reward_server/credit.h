@@ -11,30 +11,24 @@
 
 namespace imca::reward {
 
-// How a global bonus becomes per-agent bonuses (docs/credit.md).
-enum class Credit { kNone, kIndependent, kShared, kImca };
 // How homogeneous agents' identities enter keys (docs/credit.md, paper 4.3).
 enum class Permutation { kOff, kRandom, kCanonical };
 
-// Parse "none|independent|shared|imca" and "off|random|canonical".
-// Errors: INVALID_ARGUMENT naming the value and the choices.
-absl::StatusOr<Credit> ParseCredit(absl::string_view name);
+// Parse "off|random|canonical". Errors: INVALID_ARGUMENT naming the value
+// and the choices.
 absl::StatusOr<Permutation> ParsePermutation(absl::string_view name);
-std::string CreditName(Credit credit);
 std::string PermutationName(Permutation permutation);
-// Every credit and permutation mode's name (reward_server --list).
-std::vector<std::string> CreditNames();
+// Every permutation mode's name (reward_server --list).
 std::vector<std::string> PermutationNames();
 // Their flag spelling, the names above (base/settings.h).
-std::vector<std::string> SettingChoices(Credit);
 std::vector<std::string> SettingChoices(Permutation);
-bool AbslParseFlag(absl::string_view text, Credit* credit, std::string* error);
 bool AbslParseFlag(absl::string_view text, Permutation* permutation, std::string* error);
-std::string AbslUnparseFlag(Credit credit);
 std::string AbslUnparseFlag(Permutation permutation);
 
 struct ScorerConfig {
-  Credit credit = Credit::kImca;
+  // The credit rule (credit/rules.def): how the global bonus becomes
+  // per-agent bonuses.
+  std::string credit = "imca";
   Permutation permutation = Permutation::kOff;
   double beta = 1.0;         // Coefficient of the global bonus.
   double temperature = 1.0;  // tau of the softmax over contributions.
@@ -54,9 +48,9 @@ struct ScorerConfig {
 
 // The settings every reward kind shares (base/settings.h): type, flag,
 // field of ScorerConfig, help. A kind's own are its registry entry's
-// (novelty/registry.h).
+// (novelty/registry.h); --credit's choices are the credit rules'
+// (reward_flags.cc).
 #define IMCA_SCORER_SETTINGS(X)                                                                                     \
-  X(::imca::reward::Credit, credit, credit, "credit mode: how the global bonus becomes per-agent bonuses")         \
   X(::imca::reward::Permutation, permutation, permutation, "permutation mode of homogeneous agents' keys")         \
   X(double, beta, beta, "coefficient of the global intrinsic reward")                                               \
   X(double, temperature, temperature, "softmax temperature tau of the credit shares")                               \
@@ -65,9 +59,6 @@ struct ScorerConfig {
     "score each policy version's calls against the state its first call found, applying the version's updates in " \
     "(actor id, sequence) order: with the learner's --deterministic, a run is a function of its configuration")    \
   X(int, threads, threads, "LibTorch intra-op threads (rnd, sf)")
-
-// p^a = softmax_a(r^a / tau) over n contributions (numerically stable).
-void SoftmaxShares(const float* contributions, int n, double temperature, float* shares);
 
 }  // namespace imca::reward
 

@@ -9,7 +9,11 @@
 namespace imca::reward {
 
 CreditScorer::CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n)
-    : returns_influences_(novelty->ReturnsInfluences()), novelty_(std::move(novelty)), config_(config), n_(n) {}
+    : returns_influences_(novelty->ReturnsInfluences()),
+      novelty_(std::move(novelty)),
+      config_(config),
+      rule_(CreditRules().Find(config.credit)),
+      n_(n) {}
 
 absl::Status CreditScorer::Compute(const TransitionBatch& batch, bool dry_run, NoveltyOutput out,
                                    ScoreSeconds* parts) {
@@ -83,63 +87,37 @@ absl::Status CreditScorer::Score(const TransitionBatch& batch, bool dry_run, con
 
 absl::Status CreditScorer::ApplyCredit(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out,
                                        ScoreSeconds* parts) {
+  if (!rule_.ok()) return rule_.status();
+  const CreditRuleEntry& rule = **rule_;
   const int n = n_;
   const int64_t N = batch.size;
-  const float beta = static_cast<float>(config_.beta);
-  if (config_.credit == Credit::kNone) {
-    std::fill(out.global_rewards, out.global_rewards + N, 0.0f);
-    std::fill(out.contributions, out.contributions + N * n, 0.0f);
-    std::fill(out.agent_rewards, out.agent_rewards + N * n, 0.0f);
-    std::fill(out.shares, out.shares + N * n, 1.0f / n);
-    if (out.influences != nullptr) std::fill(out.influences, out.influences + N * n * n, 0.0f);
-    return absl::OkStatus();
-  }
+  CreditInput in{N, n, config_.beta, config_.temperature};
   NoveltyOutput novelty;
   novelty.influences = out.influences;
-
-  if (config_.credit == Credit::kIndependent) {
-    // The kind's local novelties land in contributions, reported as N_a.
-    novelty.local = out.contributions;
+  std::vector<float> global;
+  std::vector<double> divisor;
+  switch (rule.reads) {
+    case NoveltyReads::kNothing:
+      break;
+    case NoveltyReads::kLocal:  // The kind's local novelties land in contributions, reported as N_a.
+      in.local = novelty.local = out.contributions;
+      break;
+    case NoveltyReads::kContributions:
+      divisor.assign(N * n, 1.0);
+      in.divisor = novelty.agent_divisor = divisor.data();
+      in.contributions = novelty.contributions = out.contributions;
+      [[fallthrough]];
+    case NoveltyReads::kGlobal:
+      global.resize(N);
+      in.global = novelty.joint = global.data();
+      break;
+  }
+  if (rule.reads != NoveltyReads::kNothing) {
     IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, parts));
-    for (int64_t i = 0; i < N; ++i) {
-      const float* local = out.contributions + i * n;
-      float* rewards = out.agent_rewards + i * n;
-      float total = 0;
-      for (int a = 0; a < n; ++a) total += rewards[a] = beta * local[a];
-      out.global_rewards[i] = total;
-      for (int a = 0; a < n; ++a) out.shares[i * n + a] = total > 0 ? rewards[a] / total : 1.0f / n;
-    }
-    return absl::OkStatus();
+  } else if (out.influences != nullptr) {
+    std::fill(out.influences, out.influences + N * n * n, 0.0f);
   }
-
-  std::vector<float> joint(N);
-  novelty.joint = joint.data();
-  if (config_.credit == Credit::kShared) {
-    IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, parts));
-    for (int64_t i = 0; i < N; ++i) {
-      out.global_rewards[i] = beta * joint[i];
-      for (int a = 0; a < n; ++a) {
-        out.contributions[i * n + a] = 0;
-        out.agent_rewards[i * n + a] = out.global_rewards[i];
-        out.shares[i * n + a] = 1.0f / n;
-      }
-    }
-    return absl::OkStatus();
-  }
-
-  // imca.
-  std::vector<double> divisor(N * n, 1.0);
-  novelty.contributions = out.contributions;
-  novelty.agent_divisor = divisor.data();
-  IMCA_RETURN_IF_ERROR(Compute(batch, dry_run, novelty, parts));
-  for (int64_t i = 0; i < N; ++i) {
-    out.global_rewards[i] = beta * joint[i];
-    float* shares = out.shares + i * n;
-    SoftmaxShares(out.contributions + i * n, n, config_.temperature, shares);
-    for (int a = 0; a < n; ++a) {
-      out.agent_rewards[i * n + a] = static_cast<float>(shares[a] * out.global_rewards[i] / divisor[i * n + a]);
-    }
-  }
+  rule.apply(in, out);
   return absl::OkStatus();
 }
 

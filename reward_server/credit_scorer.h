@@ -11,6 +11,7 @@
 #include "absl/status/status.h"
 #include "absl/synchronization/mutex.h"
 #include "reward_server/credit.h"
+#include "reward_server/credit/registry.h"
 #include "reward_server/novelty/novelty.h"
 #include "reward_server/scorer.h"
 
@@ -43,8 +44,9 @@ inline constexpr int64_t kMaxCallsPerVersion = 1024;
 // credit rule's time.
 class CreditScorer : public Scorer {
  public:
-  // `n` agents. The caller checks novelty->Supports(config.credit) first
-  // (MakeScorer does).
+  // `n` agents, credit rule config.credit (credit/registry.h). The caller
+  // checks the rule exists and novelty->Supports(its reads) first
+  // (MakeScorer does); Score refuses an unknown rule.
   CreditScorer(std::unique_ptr<Novelty> novelty, const ScorerConfig& config, int n);
 
   absl::Status Score(const TransitionBatch& batch, bool dry_run, const ScoreOutput& out) override;
@@ -77,6 +79,7 @@ class CreditScorer : public Scorer {
   int64_t version_ ABSL_GUARDED_BY(mu_) = kNoVersion;
   int64_t version_calls_ ABSL_GUARDED_BY(mu_) = 0;
   const ScorerConfig config_;
+  const absl::StatusOr<const CreditRuleEntry*> rule_;
   const int n_;
 };
 

@@ -14,6 +14,7 @@
 #include "env/env.h"
 #include "env/scenario_flags.h"
 #include "nn/blas_kernels.h"
+#include "reward_server/credit/registry.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_flags.h"
 #include "reward_server/reward_service.h"
@@ -71,19 +72,14 @@ int List(const imca::env::Scenario& scenario) {
     defaults.Raw(kind, by_scenario.Text());
     auto novelty = reward::MakeNovelty(kind, scenario, reward::ScorerConfig{});
     if (!novelty.ok()) return Fail(absl::StrCat("--list: reward kind ", kind, ": ", novelty.status().message()));
-    std::vector<std::string> credits;
-    for (const std::string& name : reward::CreditNames()) {
-      const reward::Credit credit = *reward::ParseCredit(name);
-      if (credit == reward::Credit::kNone || (*novelty)->Supports(credit)) credits.push_back(name);
-    }
-    rewards.Add(kind, credits);
+    rewards.Add(kind, reward::ServedCredits(**novelty));
   }
   std::printf("%s\n", JsonObject()
                           .Add("program", "reward_server")
                           .Add("scenarios", env::ScenarioNames())
                           .Raw("rewards", rewards.Text())
                           .Add("default_reward", reward::RewardKinds().front())
-                          .Add("credits", reward::CreditNames())
+                          .Add("credits", reward::CreditRules().Names())
                           .Add("permutations", reward::PermutationNames())
                           .Raw("reward_settings", SettingRowsJson(reward::RewardSettingRows()))
                           .Raw("reward_defaults", defaults.Text())
@@ -149,7 +145,7 @@ int main(int argc, char** argv) {
   auto server = ServeFromFlags(kDefaultRewardServerAddress, {&service}, *server_options, &port);
   if (!server.ok()) return Fail(std::string(server.status().message()));
   std::fprintf(stderr, "reward_server: serving %s/%s credit=%s on port %d (%s)\n",
-               std::string((*scenario)->name()).c_str(), kind.c_str(), reward::CreditName(config.credit).c_str(), port,
+               std::string((*scenario)->name()).c_str(), kind.c_str(), config.credit.c_str(), port,
                TransportSummary(server_options->transport, /*server=*/true).c_str());
 
   const auto period = std::chrono::seconds(absl::GetFlag(FLAGS_snapshot_every));

@@ -2,6 +2,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "base/status_macros.h"
+#include "reward_server/credit/registry.h"
 #include "reward_server/novelty/registry.h"
 
 namespace imca::reward {
@@ -22,23 +24,26 @@ absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, co
   return (*entry)->create(scenario, config, options);
 }
 
+std::vector<std::string> ServedCredits(const Novelty& novelty) {
+  std::vector<std::string> served;
+  for (const CreditRuleEntry& rule : CreditRules().entries()) {
+    if (rule.reads == NoveltyReads::kNothing || novelty.Supports(rule.reads)) served.push_back(rule.name);
+  }
+  return served;
+}
+
 absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind, const env::Scenario& scenario,
                                                          const ScorerConfig& config, const std::any& options) {
   if (!(config.beta >= 0)) return absl::InvalidArgumentError("beta must be >= 0");
   if (!(config.temperature > 0)) return absl::InvalidArgumentError("temperature must be > 0");
-  auto novelty = MakeNovelty(kind, scenario, config, options);
-  if (!novelty.ok()) return novelty.status();
-  if (config.credit != Credit::kNone && !(*novelty)->Supports(config.credit)) {
-    std::vector<std::string> served;
-    for (const std::string& name : CreditNames()) {
-      const Credit credit = *ParseCredit(name);
-      if (credit == Credit::kNone || (*novelty)->Supports(credit)) served.push_back(name);
-    }
-    return absl::InvalidArgumentError(absl::StrCat("credit '", CreditName(config.credit),
-                                                   "' is not served by reward '", kind, "' (it serves: ",
-                                                   absl::StrJoin(served, ", "), ")"));
+  IMCA_ASSIGN_OR_RETURN(const NoveltyReads reads, CreditReads(config.credit));
+  IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Novelty> novelty, MakeNovelty(kind, scenario, config, options));
+  if (reads != NoveltyReads::kNothing && !novelty->Supports(reads)) {
+    return absl::InvalidArgumentError(absl::StrCat("credit '", config.credit, "' is not served by reward '", kind,
+                                                   "' (it serves: ", absl::StrJoin(ServedCredits(*novelty), ", "),
+                                                   ")"));
   }
-  return std::make_unique<CreditScorer>(*std::move(novelty), config, scenario.num_agents());
+  return std::make_unique<CreditScorer>(std::move(novelty), config, scenario.num_agents());
 }
 
 }  // namespace imca::reward

@@ -35,9 +35,14 @@ ScorerConfig DefaultScorerConfig(const std::string& kind, absl::string_view scen
 absl::StatusOr<std::unique_ptr<Novelty>> MakeNovelty(const std::string& kind, const env::Scenario& scenario,
                                                      const ScorerConfig& config, const std::any& options = {});
 
+// The credit rules (credit/rules.def) `novelty` serves: those reading
+// nothing and those whose reads it Supports.
+std::vector<std::string> ServedCredits(const Novelty& novelty);
+
 // That novelty under the credit rule of config.credit. Errors: those of
-// MakeNovelty, and INVALID_ARGUMENT if the kind cannot serve the credit mode
-// or beta < 0 or temperature <= 0 (naming the field).
+// MakeNovelty, and INVALID_ARGUMENT for an unknown credit rule (naming
+// --credit and the rules), one the kind cannot serve, or beta < 0 or
+// temperature <= 0 (naming the field).
 absl::StatusOr<std::unique_ptr<CreditScorer>> MakeScorer(const std::string& kind, const env::Scenario& scenario,
                                                          const ScorerConfig& config, const std::any& options = {});
 

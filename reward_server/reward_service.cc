@@ -179,7 +179,7 @@ v1::RewardStats RewardServiceImpl::Stats() const {
   v1::RewardStats stats;
   v1::RewardStats* response = &stats;
   response->set_reward_kind(reward_kind_);
-  response->set_credit(std::string(CreditName(config_.credit)));
+  response->set_credit(config_.credit);
   response->set_permutation(std::string(PermutationName(config_.permutation)));
   response->set_beta(config_.beta);
   response->set_temperature(config_.temperature);

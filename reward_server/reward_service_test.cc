@@ -29,7 +29,7 @@ class RewardServiceTest : public ::testing::Test {
     auto scenario = env::MakeScenario(env::ScenarioConfig{}, env::DefaultMapDir());
     ASSERT_TRUE(scenario.ok()) << scenario.status();
     scenario_ = *std::move(scenario);
-    config_.credit = Credit::kImca;
+    config_.credit = "imca";
     auto scorer = MakeScorer("count", *scenario_, config_);
     ASSERT_TRUE(scorer.ok()) << scorer.status();
     scorer_ = *std::move(scorer);
@@ -243,7 +243,7 @@ TEST(InfluenceServiceTest, EdtiReturnsInfluencesEitiDoesNot) {
   const int n = (*scenario)->num_agents();
   for (const std::string kind : {"eiti", "edti"}) {
     ScorerConfig config;
-    config.credit = Credit::kIndependent;
+    config.credit = "independent";
     auto scorer = MakeScorer(kind, **scenario, config);
     ASSERT_TRUE(scorer.ok()) << scorer.status();
     RewardServiceImpl service(scenario->get(), scorer->get(), kind, config, "");
@@ -287,10 +287,10 @@ TEST(ScoreTimelineTest, PhasesAreReportedByWhatRanAndFitInTheHandler) {
   ASSERT_TRUE(scenario.ok()) << scenario.status();
   struct Run {
     std::string kind;
-    Credit credit;
+    std::string credit;
   };
-  for (const Run& run : {Run{"rnd", Credit::kImca}, Run{"rnd", Credit::kShared}, Run{"count", Credit::kImca}}) {
-    const std::string label = run.kind + " " + CreditName(run.credit);
+  for (const Run& run : {Run{"rnd", "imca"}, Run{"rnd", "shared"}, Run{"count", "imca"}}) {
+    const std::string label = run.kind + " " + run.credit;
     ScorerConfig config;
     config.credit = run.credit;
     auto scorer = MakeScorer(run.kind, **scenario, config);
@@ -328,7 +328,7 @@ TEST(ScoreTimelineTest, PhasesAreReportedByWhatRanAndFitInTheHandler) {
       EXPECT_EQ(seconds.at("encode"), 0.0) << label << ": a count kind reports no parts";
       EXPECT_EQ(seconds.at("train"), 0.0) << label;
     }
-    if (run.kind == "rnd" && run.credit == Credit::kImca) {
+    if (run.kind == "rnd" && run.credit == "imca") {
       EXPECT_GT(seconds.at("counterfactual"), 0.0) << label;
     } else {
       EXPECT_EQ(seconds.at("counterfactual"), 0.0) << label;
@@ -350,7 +350,7 @@ TEST(RecoveryTest, EveryAnsweredScoreSurvivesAServerThatDies) {
     auto scenario = env::MakeScenario(scenario_config, env::DefaultMapDir());
     ASSERT_TRUE(scenario.ok()) << scenario.status();
     ScorerConfig config;
-    config.credit = kind == "count" ? Credit::kImca : Credit::kIndependent;
+    config.credit = kind == "count" ? "imca" : "independent";
     const std::string snapshot = dir + "/" + kind + ".bin";
     // One incarnation of the server: restore, serve `requests` Score calls
     // (a Snapshot RPC after the second), return the stats it answered with.

@@ -30,7 +30,7 @@ enum class Journal { kOff, kWrite, kSync };
 
 // Median transitions/s of Score calls with `credit`; with a journal, the
 // scorer is restored from (and journals to) a fresh snapshot path.
-double Throughput(const std::string& kind, const env::Scenario& scenario, reward::Credit credit, int rounds,
+double Throughput(const std::string& kind, const env::Scenario& scenario, std::string credit, int rounds,
                   Journal journal = Journal::kOff) {
   reward::ScorerConfig config;
   config.credit = credit;
@@ -101,8 +101,8 @@ int main(int argc, char** argv) {
       return 2;
     }
     for (const std::string& kind : kinds) {
-      const double imca = Throughput(kind, **scenario, reward::Credit::kImca, rounds);
-      const double shared = Throughput(kind, **scenario, reward::Credit::kShared, rounds);
+      const double imca = Throughput(kind, **scenario, "imca", rounds);
+      const double shared = Throughput(kind, **scenario, "shared", rounds);
       if (imca == 0 || shared == 0) return 1;
       std::printf("%-6s %-14s %6d %18.0f %18.0f %15.0f%%\n", kind.c_str(), name.c_str(), (*scenario)->num_agents(),
                   imca, shared, 100.0 * (1.0 - imca / shared));
@@ -123,9 +123,9 @@ int main(int argc, char** argv) {
     // machine's noise is larger than the journal's cost.
     std::vector<double> offs, writes, syncs;
     for (int repeat = 0; repeat < 3; ++repeat) {
-      offs.push_back(Throughput("count", **scenario, reward::Credit::kImca, rounds, Journal::kOff));
-      writes.push_back(Throughput("count", **scenario, reward::Credit::kImca, rounds, Journal::kWrite));
-      syncs.push_back(Throughput("count", **scenario, reward::Credit::kImca, rounds, Journal::kSync));
+      offs.push_back(Throughput("count", **scenario, "imca", rounds, Journal::kOff));
+      writes.push_back(Throughput("count", **scenario, "imca", rounds, Journal::kWrite));
+      syncs.push_back(Throughput("count", **scenario, "imca", rounds, Journal::kSync));
     }
     for (auto* v : {&offs, &writes, &syncs}) std::sort(v->begin(), v->end());
     const double off = offs[1], write = writes[1], sync = syncs[1];

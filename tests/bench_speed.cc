@@ -75,7 +75,7 @@ double BenchEnv(const env::Scenario& scenario, int rounds) {
 
 double BenchScore(const env::Scenario& scenario, int rounds) {
   reward::ScorerConfig config;
-  config.credit = reward::Credit::kImca;
+  config.credit = "imca";
   std::unique_ptr<reward::Scorer> scorer = *reward::MakeScorer("count", scenario, config);
   reward::RewardServiceImpl service(&scenario, scorer.get(), "count", config, "");
   int port = 0;

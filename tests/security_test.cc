@@ -102,7 +102,7 @@ class SecurityTest : public ::testing::Test {
 
   void StartReward(ServerOptions options, reward::Scorer* scorer = nullptr,
                    reward::ServiceLimits limits = {}) {
-    config_.credit = reward::Credit::kImca;
+    config_.credit = "imca";
     auto made = reward::MakeScorer("count", *scenario_, config_);
     ASSERT_TRUE(made.ok()) << made.status();
     scorer_ = *std::move(made);
@@ -449,7 +449,7 @@ TEST_F(SecurityTest, AFloodingClientTakesOnlyItsOwnSlots) {
   reward::ServiceLimits limits;
   limits.max_inflight = 3;
   limits.max_inflight_per_actor = 2;
-  config_.credit = reward::Credit::kImca;
+  config_.credit = "imca";
   auto real = reward::MakeScorer("count", *scenario_, config_);
   ASSERT_TRUE(real.ok());
   HeldScorer held(real->get());

@@ -14,7 +14,7 @@
 
 // A toy algorithm, whole: its options and their one table of settings, its
 // Algorithm, its entry. Adding it to the learner is this much plus one line
-// in registry.cc's list.
+// in algorithms.def (and its sources in learner/CMakeLists.txt).
 namespace imca::learner {
 namespace {
 

@@ -100,7 +100,7 @@ void CountNovelty::FillStats(v1::RewardStats* stats) const {
 
 std::string CountNovelty::ConfigTag() const {
   return absl::StrCat(kMagic, " ", scenario_tag_, " n=", n_, " A=", num_actions_,
-                      " exact=", codec_.exact(), " credit=", CreditName(config_.credit),
+                      " exact=", codec_.exact(), " credit=", config_.credit,
                       " permutation=", PermutationName(config_.permutation));
 }
 

@@ -30,7 +30,7 @@ class CountNovelty final : public CountedNovelty {
  public:
   CountNovelty(const env::Scenario& scenario, const ScorerConfig& config);
 
-  bool Supports(Credit credit) const override { return true; }
+  bool Supports(NoveltyReads reads) const override { return true; }
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;
 

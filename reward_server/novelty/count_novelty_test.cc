@@ -40,7 +40,7 @@ class CountScorerTest : public ::testing::Test {
   std::unique_ptr<env::Scenario> scenario_;
 };
 
-ScorerConfig Config(Credit credit, Permutation permutation = Permutation::kOff, double beta = 1.0) {
+ScorerConfig Config(std::string credit, Permutation permutation = Permutation::kOff, double beta = 1.0) {
   ScorerConfig config;
   config.credit = credit;
   config.permutation = permutation;
@@ -49,7 +49,7 @@ ScorerConfig Config(Credit credit, Permutation permutation = Permutation::kOff, 
 }
 
 TEST_F(CountScorerTest, FirstVisitSplitsEvenly) {
-  CountScorer scorer(*scenario_, Config(Credit::kImca, Permutation::kOff, 2.0));
+  CountScorer scorer(*scenario_, Config("imca", Permutation::kOff, 2.0));
   Result r = Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()});
   EXPECT_NEAR(r.global[0], 2.0f, kTol);  // beta / sqrt(0 + 1).
   EXPECT_NEAR(r.contributions[0], 0.0f, kTol);
@@ -59,7 +59,7 @@ TEST_F(CountScorerTest, FirstVisitSplitsEvenly) {
 }
 
 TEST_F(CountScorerTest, CreditGoesToTheAgentWhoseActionWasNovel) {
-  CountScorer scorer(*scenario_, Config(Credit::kImca));
+  CountScorer scorer(*scenario_, Config("imca"));
   for (int i = 0; i < 3; ++i) Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()});
   std::vector<float> probs = Uniform();
   probs[kA + 0] = 0.5f;  // pi^2(0) = 0.5, others 0.125.
@@ -76,7 +76,7 @@ TEST_F(CountScorerTest, CreditGoesToTheAgentWhoseActionWasNovel) {
 }
 
 TEST_F(CountScorerTest, CounterfactualOverAllFiveActions) {
-  CountScorer scorer(*scenario_, Config(Credit::kImca));
+  CountScorer scorer(*scenario_, Config("imca"));
   // Counts of (u', 0) for u' = 0..4 become 1, 2, 3, 4, 0.
   for (int u = 0; u < 4; ++u) {
     for (int i = 0; i <= u; ++i) Score(scorer, {{0, 4}}, {{u, 0}}, {Uniform()});
@@ -93,7 +93,7 @@ TEST_F(CountScorerTest, CounterfactualOverAllFiveActions) {
 }
 
 TEST_F(CountScorerTest, TemperatureSharpensShares) {
-  ScorerConfig config = Config(Credit::kImca);
+  ScorerConfig config = Config("imca");
   config.temperature = 0.1;
   CountScorer scorer(*scenario_, config);
   for (int i = 0; i < 3; ++i) Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()});
@@ -104,8 +104,8 @@ TEST_F(CountScorerTest, TemperatureSharpensShares) {
 }
 
 TEST_F(CountScorerTest, BatchEqualsOneByOneInOrder) {
-  CountScorer batched(*scenario_, Config(Credit::kShared));
-  CountScorer single(*scenario_, Config(Credit::kShared));
+  CountScorer batched(*scenario_, Config("shared"));
+  CountScorer single(*scenario_, Config("shared"));
   Result r = Score(batched, {{0, 4}, {0, 4}, {1, 4}, {0, 4}}, {{2, 0}, {2, 0}, {2, 0}, {2, 0}},
                    {Uniform(), Uniform(), Uniform(), Uniform()});
   const float expected[] = {1.0f, 1.0f / std::sqrt(2.0f), 1.0f, 1.0f / std::sqrt(3.0f)};
@@ -122,14 +122,14 @@ TEST_F(CountScorerTest, BatchEqualsOneByOneInOrder) {
 }
 
 TEST_F(CountScorerTest, DryRunChangesNothing) {
-  CountScorer scorer(*scenario_, Config(Credit::kImca));
+  CountScorer scorer(*scenario_, Config("imca"));
   Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()}, /*dry_run=*/true);
   Result r = Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()});
   EXPECT_NEAR(r.global[0], 1.0f, kTol);
 }
 
 TEST_F(CountScorerTest, NoneGivesZerosAndTouchesNoTable) {
-  CountScorer scorer(*scenario_, Config(Credit::kNone));
+  CountScorer scorer(*scenario_, Config("none"));
   Result r = Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()});
   EXPECT_EQ(r.global[0], 0.0f);
   EXPECT_EQ(r.agent_rewards[0], 0.0f);
@@ -141,7 +141,7 @@ TEST_F(CountScorerTest, NoneGivesZerosAndTouchesNoTable) {
 }
 
 TEST_F(CountScorerTest, IndependentUsesEachAgentsLocalCounts) {
-  CountScorer scorer(*scenario_, Config(Credit::kIndependent, Permutation::kOff, 3.0));
+  CountScorer scorer(*scenario_, Config("independent", Permutation::kOff, 3.0));
   Score(scorer, {{0, 4}}, {{2, 0}}, {Uniform()});
   // Agent 1 repeats (cell 0, action 2); agent 2 does something new.
   Result r = Score(scorer, {{0, 3}}, {{2, 0}}, {Uniform()});
@@ -152,8 +152,8 @@ TEST_F(CountScorerTest, IndependentUsesEachAgentsLocalCounts) {
 }
 
 TEST_F(CountScorerTest, IndependentWithPermutationSharesOneLocalTable) {
-  CountScorer off(*scenario_, Config(Credit::kIndependent, Permutation::kOff));
-  CountScorer canonical(*scenario_, Config(Credit::kIndependent, Permutation::kCanonical));
+  CountScorer off(*scenario_, Config("independent", Permutation::kOff));
+  CountScorer canonical(*scenario_, Config("independent", Permutation::kCanonical));
   for (CountScorer* s : {&off, &canonical}) Score(*s, {{0, 4}}, {{2, 0}}, {Uniform()});
   // Now agent 2 stands where agent 1 stood and does what it did.
   Result r_off = Score(off, {{1, 0}}, {{3, 2}}, {Uniform()});
@@ -163,8 +163,8 @@ TEST_F(CountScorerTest, IndependentWithPermutationSharesOneLocalTable) {
 }
 
 TEST_F(CountScorerTest, CanonicalPermutationMakesSwappedAgentsOneKey) {
-  CountScorer off(*scenario_, Config(Credit::kImca, Permutation::kOff));
-  CountScorer canonical(*scenario_, Config(Credit::kImca, Permutation::kCanonical));
+  CountScorer off(*scenario_, Config("imca", Permutation::kOff));
+  CountScorer canonical(*scenario_, Config("imca", Permutation::kCanonical));
   std::vector<float> probs = Uniform();
   probs[0] = 0.1f;
   probs[1] = 0.3f;  // pi^1(1) = 0.3 (the action agent 1 takes below).
@@ -189,7 +189,7 @@ TEST_F(CountScorerTest, RandomPermutationIncrementsAPermutedKey) {
   const std::vector<int32_t> state = {0, 0, 4, 0}, swapped_state = {0, 4, 0, 0};
   const std::vector<int32_t> actions = {2, 1}, swapped_actions = {1, 2};
   for (uint64_t seed = 1; seed <= 64; ++seed) {
-    ScorerConfig config = Config(Credit::kShared, Permutation::kRandom);
+    ScorerConfig config = Config("shared", Permutation::kRandom);
     config.seed = seed;
     CountScorer scorer(*scenario_, config);
     Score(scorer, {{0, 4}}, {{2, 1}}, {Uniform()});
@@ -205,15 +205,15 @@ TEST_F(CountScorerTest, RandomPermutationIncrementsAPermutedKey) {
 
 TEST_F(CountScorerTest, SnapshotRoundTripGivesIdenticalScores) {
   const std::string path = ::testing::TempDir() + "/count_snapshot.bin";
-  CountScorer scorer(*scenario_, Config(Credit::kImca));
+  CountScorer scorer(*scenario_, Config("imca"));
   for (int i = 0; i < 5; ++i) Score(scorer, {{0, 4}}, {{i % 5, 0}}, {Uniform()});
   ASSERT_TRUE(scorer.Save(path).ok());
-  CountScorer restored(*scenario_, Config(Credit::kImca));
+  CountScorer restored(*scenario_, Config("imca"));
   ASSERT_TRUE(restored.Load(path).ok());
   Result a = Score(scorer, {{0, 4}}, {{1, 0}}, {Uniform()});
   Result b = Score(restored, {{0, 4}}, {{1, 0}}, {Uniform()});
   EXPECT_EQ(a.agent_rewards, b.agent_rewards);
-  CountScorer other(*scenario_, Config(Credit::kShared));
+  CountScorer other(*scenario_, Config("shared"));
   EXPECT_EQ(other.Load(path).code(), absl::StatusCode::kFailedPrecondition);
   std::remove(path.c_str());
 }

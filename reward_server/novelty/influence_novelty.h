@@ -48,7 +48,7 @@ class InfluenceNovelty final : public CountedNovelty {
  public:
   InfluenceNovelty(const env::Scenario& scenario, const ScorerConfig& config, const InfluenceConfig& influence);
 
-  bool Supports(Credit credit) const override { return credit == Credit::kIndependent; }
+  bool Supports(NoveltyReads reads) const override { return reads == NoveltyReads::kLocal; }
   bool ReturnsInfluences() const override { return influence_.edti; }
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) override;
   void FillStats(v1::RewardStats* stats) const override;

@@ -41,7 +41,7 @@ class InfluenceTest : public ::testing::Test {
 
   std::unique_ptr<CreditScorer> Make(const std::string& kind, bool log_form = false) {
     ScorerConfig config;
-    config.credit = Credit::kIndependent;
+    config.credit = "independent";
     InfluenceConfig influence;
     influence.log_form = log_form;
     auto scorer = MakeScorer(kind, *scenario_, config, influence);
@@ -173,7 +173,7 @@ TEST_F(InfluenceTest, SnapshotRoundTripGivesIdenticalScores) {
 }
 
 TEST_F(InfluenceTest, OnlyIndependentCreditIsOffered) {
-  for (Credit credit : {Credit::kShared, Credit::kImca}) {
+  for (std::string credit : {"shared", "imca"}) {
     ScorerConfig config;
     config.credit = credit;
     auto scorer = MakeScorer("edti", *scenario_, config);
@@ -182,7 +182,7 @@ TEST_F(InfluenceTest, OnlyIndependentCreditIsOffered) {
     EXPECT_NE(scorer.status().message().find("it serves: none, independent)"), std::string::npos) << scorer.status();
   }
   ScorerConfig none;
-  none.credit = Credit::kNone;
+  none.credit = "none";
   EXPECT_TRUE(MakeScorer("eiti", *scenario_, none).ok()) << "credit none: no bonus, like every kind";
 }
 

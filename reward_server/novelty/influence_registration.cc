@@ -16,7 +16,7 @@ IMCA_SETTING_TABLE(Settings, InfluenceConfig, IMCA_INFLUENCE_SETTINGS)
 
 // Per-agent by construction (docs/baselines.md): eta and beta_t set the scale.
 void InfluenceDefaults(ScorerConfig* config) {
-  config->credit = Credit::kIndependent;
+  config->credit = "independent";
   config->beta = 1.0;
 }
 

@@ -23,8 +23,8 @@ class BytesSnapshot final : public Novelty::Snapshot {
 
 }  // namespace
 
-LearnedNovelty::LearnedNovelty(std::string kind, Credit credit, bool deterministic)
-    : kind_(std::move(kind)), credit_(credit), deterministic_(deterministic) {}
+LearnedNovelty::LearnedNovelty(std::string kind, std::string credit, NoveltyReads reads, bool deterministic)
+    : kind_(std::move(kind)), credit_(std::move(credit)), reads_(reads), deterministic_(deterministic) {}
 
 absl::Status LearnedNovelty::CheckNetwork(absl::string_view kind, const std::vector<int>& hidden,
                                           double learning_rate, double gamma) {
@@ -38,9 +38,9 @@ absl::Status LearnedNovelty::CheckNetwork(absl::string_view kind, const std::vec
 
 absl::Status LearnedNovelty::Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) {
   const bool local = out.local != nullptr;
-  if (credit_ == Credit::kNone || local != (credit_ == Credit::kIndependent)) {
-    return absl::InternalError(absl::StrCat(kind_, ": no ", local ? "local" : "joint", " model in credit mode ",
-                                            CreditName(credit_)));
+  if (reads_ == NoveltyReads::kNothing || local != (reads_ == NoveltyReads::kLocal)) {
+    return absl::InternalError(absl::StrCat(kind_, ": no ", local ? "local" : "joint", " model for credit rule ",
+                                            credit_));
   }
   Deferred updates;
   Deferred* deferred = deterministic_ && !dry_run ? &updates : nullptr;

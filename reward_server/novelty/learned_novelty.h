@@ -27,7 +27,7 @@ namespace imca::reward {
 // (Novelty).
 class LearnedNovelty : public Novelty {
  public:
-  bool Supports(Credit) const final { return true; }
+  bool Supports(NoveltyReads) const final { return true; }
   absl::Status Compute(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out) final;
   absl::StatusOr<std::unique_ptr<Snapshot>> TakeSnapshot() final;
   // Deterministic: runs the updates the last version's calls deferred, in
@@ -41,9 +41,10 @@ class LearnedNovelty : public Novelty {
   static absl::Status CheckNetwork(absl::string_view kind, const std::vector<int>& hidden, double learning_rate,
                                    double gamma);
 
-  // `kind` names the novelty in errors ("rnd", "sf"). `deterministic`: a
-  // call's updates are deferred to the next version (Deferred).
-  LearnedNovelty(std::string kind, Credit credit, bool deterministic);
+  // `kind` names the novelty in errors ("rnd", "sf"); `reads`, what credit
+  // rule `credit` reads, says which model it has. `deterministic`: a call's
+  // updates are deferred to the next version (Deferred).
+  LearnedNovelty(std::string kind, std::string credit, NoveltyReads reads, bool deterministic);
 
   // Deterministic scoring outside a dry run: the call scores with the models
   // as they are (the version's start) and leaves them unchanged, appending
@@ -79,7 +80,8 @@ class LearnedNovelty : public Novelty {
   };
 
   const std::string kind_;
-  const Credit credit_;
+  const std::string credit_;
+  const NoveltyReads reads_;
   const bool deterministic_;
   std::vector<Pending> pending_;  // The current version's calls'.
 };

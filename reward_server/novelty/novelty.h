@@ -11,21 +11,22 @@
 #include "absl/status/statusor.h"
 #include "imca/v1/reward_service.pb.h"
 #include "reward_server/credit.h"
+#include "reward_server/credit/registry.h"
 #include "reward_server/scorer.h"
 
 namespace imca::reward {
 
 // What one reward kind computes for a request, before credit assignment.
 // Arrays are [N] or [N][n], preallocated by the caller; a kind writes only
-// those its credit mode needs (the others are null).
+// those the credit rule reads (NoveltyReads; the others are null).
 struct NoveltyOutput {
-  // Joint credit (shared, imca): the global novelty N(S, U), so R_i = beta * joint.
+  // kGlobal, kContributions (shared, imca): the global novelty N(S, U).
   float* joint = nullptr;
-  // imca only: each agent's contribution r^a (d^a for SF) and a divisor of
-  // its reward, preset to 1 (SF writes sqrt(N_ep)).
+  // kContributions (imca): each agent's contribution r^a (d^a for SF) and
+  // a divisor of its reward, preset to 1 (SF writes sqrt(N_ep)).
   float* contributions = nullptr;
   double* agent_divisor = nullptr;
-  // Independent credit: each agent's own novelty, r_i^a = beta * local.
+  // kLocal (independent): each agent's own novelty N_a.
   float* local = nullptr;
   // Kinds that ReturnsInfluences(): c_{i->j}, [N][n][n].
   float* influences = nullptr;
@@ -51,12 +52,13 @@ class Novelty {
  public:
   virtual ~Novelty() = default;
 
-  // Whether this kind can serve `credit` (never called with kNone).
-  virtual bool Supports(Credit credit) const = 0;
+  // Whether this kind computes what a rule reading `reads` asks for (never
+  // called with kNothing).
+  virtual bool Supports(NoveltyReads reads) const = 0;
   // True if Compute writes NoveltyOutput::influences.
   virtual bool ReturnsInfluences() const { return false; }
-  // Computes what the non-null arrays of `out` ask for (local for
-  // independent credit, else joint, with contributions for imca); unless
+  // Computes what the non-null arrays of `out` ask for (local, or joint
+  // with or without contributions: the credit rule's reads); unless
   // dry_run, then updates counts/models. Does not fail on validated input;
   // returns INTERNAL on an internal failure (including arrays the kind was
   // not built for), with no state changed.

@@ -22,8 +22,8 @@
 namespace imca::reward {
 
 // The reward server's novelty kinds, each registered beside its code
-// (count_registration.cc, ...) by one call in registry.cc's list, the one
-// place that names them all. An entry carries everything the server, its
+// (count_registration.cc, ...) by one line of novelties.def, the one place
+// that names them all. An entry carries everything the server, its
 // binary and the tools know of a kind.
 struct NoveltyEntry {
   std::string name;  // --reward.
@@ -54,7 +54,7 @@ class NoveltyRegistry : public Registry<NoveltyEntry> {
   NoveltyRegistry() : Registry("--reward") {}
 };
 
-// Every novelty kind (registry.cc's list; the first is the default), built on
+// Every novelty kind (novelties.def; the first is the default), built on
 // first use.
 const NoveltyRegistry& Novelties();
 
@@ -117,15 +117,15 @@ absl::StatusOr<std::unique_ptr<Novelty>> CreateLearned(const env::Scenario& scen
 // The global bonuses' defaults (count, rnd, sf): half the novelty, split by
 // IMCA (the scale of every row of docs/results.md).
 inline void GlobalBonusDefaults(ScorerConfig* config) {
-  config->credit = Credit::kImca;
+  config->credit = "imca";
   config->beta = 0.5;
 }
 
-// Registrations, one per file beside each kind's code.
-absl::Status RegisterCount(NoveltyRegistry* registry);
-absl::Status RegisterRnd(NoveltyRegistry* registry);
-absl::Status RegisterSf(NoveltyRegistry* registry);
-absl::Status RegisterInfluence(NoveltyRegistry* registry);  // eiti and edti.
+// Registrations, one per file beside each kind's code and one per line of
+// novelties.def.
+#define IMCA_NOVELTY(Prefix) absl::Status Register##Prefix(NoveltyRegistry* registry);
+#include "reward_server/novelty/novelties.def"
+#undef IMCA_NOVELTY
 
 }  // namespace imca::reward
 

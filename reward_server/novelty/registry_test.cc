@@ -37,7 +37,7 @@ IMCA_SETTING_TABLE(ToySettings, ToyOptions, IMCA_TOY_NOVELTY_SETTINGS)
 // registry's contract needs of it.
 NoveltyEntry ToyEntry() {
   return MakeNoveltyEntry<ToyOptions>(
-      "toy", "a toy", &ToySettings(), [](ScorerConfig* config) { config->credit = Credit::kShared; },
+      "toy", "a toy", &ToySettings(), [](ScorerConfig* config) { config->credit = "shared"; },
       [](const env::Scenario& scenario, const ScorerConfig& config, const ToyOptions&) {
         return MakeNovelty("count", scenario, config);
       });
@@ -71,7 +71,7 @@ TEST(NoveltyRegistryTest, TheToyArrivesWithItsSettingsAndFactory) {
   ASSERT_TRUE(scenario.ok());
   ScorerConfig config;
   toy.defaults(&config);
-  EXPECT_EQ(config.credit, Credit::kShared);
+  EXPECT_EQ(config.credit, "shared");
   EXPECT_TRUE(toy.create(**scenario, config, options).ok());
   EXPECT_THAT(std::string(toy.create(**scenario, config, std::any(3)).status().message()),
               HasSubstr("another reward kind's"));

@@ -242,7 +242,7 @@ torch::Tensor StreamReturns(const torch::Tensor& novelty, int64_t T, int64_t E, 
 }  // namespace
 
 struct RndNovelty::Impl {
-  Impl(const env::Scenario& scenario, const ScorerConfig& config, const RndConfig& rnd)
+  Impl(const env::Scenario& scenario, const ScorerConfig& config, const RndConfig& rnd, NoveltyReads reads)
       : n(scenario.num_agents()),
         num_actions(scenario.num_actions()),
         config(config),
@@ -251,11 +251,11 @@ struct RndNovelty::Impl {
         codec(scenario),
         tag(absl::StrCat(kMagic, " ", scenario.name(), " ", scenario.map().width(), "x",
                          scenario.map().height(), " n=", n, " A=", num_actions, " credit=",
-                         CreditName(config.credit), " permutation=", PermutationName(config.permutation))),
+                         config.credit, " permutation=", PermutationName(config.permutation))),
         rng(config.seed) {
-    if (config.credit == Credit::kIndependent) {
+    if (reads == NoveltyReads::kLocal) {
       local.emplace(encoder.local_dim(config.permutation == Permutation::kOff), rnd, config.seed);
-    } else if (config.credit != Credit::kNone) {
+    } else if (reads != NoveltyReads::kNothing) {
       joint.emplace(encoder.joint_dim(), rnd, config.seed);
     }
   }
@@ -454,6 +454,7 @@ void RndNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, 
 absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenario& scenario,
                                                              const ScorerConfig& config, const RndConfig& rnd) {
   IMCA_RETURN_IF_ERROR(CheckNetwork("rnd", rnd.hidden, rnd.learning_rate, rnd.gamma));
+  IMCA_ASSIGN_OR_RETURN(const NoveltyReads reads, CreditReads(config.credit));
   if (rnd.output < 1) return absl::InvalidArgumentError("rnd output size must be >= 1");
   if (rnd.counterfactual_threads < 1 || rnd.counterfactual_threads > 64) {
     return absl::InvalidArgumentError("rnd counterfactual threads must be in [1, 64]");
@@ -461,11 +462,11 @@ absl::StatusOr<std::unique_ptr<RndNovelty>> RndNovelty::Create(const env::Scenar
   if (!(rnd.update_proportion > 0 && rnd.update_proportion <= 1)) {
     return absl::InvalidArgumentError("rnd update proportion must be in (0, 1]");
   }
-  return std::unique_ptr<RndNovelty>(new RndNovelty(std::make_unique<Impl>(scenario, config, rnd)));
+  return std::unique_ptr<RndNovelty>(new RndNovelty(std::make_unique<Impl>(scenario, config, rnd, reads), reads));
 }
 
-RndNovelty::RndNovelty(std::unique_ptr<Impl> impl)
-    : LearnedNovelty("rnd", impl->config.credit, impl->config.deterministic), impl_(std::move(impl)) {}
+RndNovelty::RndNovelty(std::unique_ptr<Impl> impl, NoveltyReads reads)
+    : LearnedNovelty("rnd", impl->config.credit, reads, impl->config.deterministic), impl_(std::move(impl)) {}
 RndNovelty::~RndNovelty() = default;
 
 void RndNovelty::ComputeJoint(const TransitionBatch& batch, bool dry_run, const NoveltyOutput& out,

@@ -72,7 +72,7 @@ class RndNovelty final : public LearnedNovelty {
   absl::StatusOr<std::string> Serialize() const override;
 
   struct Impl;
-  explicit RndNovelty(std::unique_ptr<Impl> impl);
+  RndNovelty(std::unique_ptr<Impl> impl, NoveltyReads reads);
   std::unique_ptr<Impl> impl_;
 };
 

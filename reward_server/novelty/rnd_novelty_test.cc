@@ -43,7 +43,7 @@ class RndScorerTest : public ::testing::Test {
     return ::imca::testing::ScoreUnroll(scorer, u, dry_run);
   }
 
-  std::unique_ptr<Credited<RndNovelty>> Make(Credit credit, Permutation permutation, RndConfig rnd = {}) {
+  std::unique_ptr<Credited<RndNovelty>> Make(std::string credit, Permutation permutation, RndConfig rnd = {}) {
     ScorerConfig config;
     config.credit = credit;
     config.permutation = permutation;
@@ -61,7 +61,7 @@ TEST_F(RndScorerTest, CounterfactualCreditMatchesHandWorkedNumbers) {
   rnd.hidden = {};
   rnd.output = 1;
   rnd.normalize = false;
-  auto scorer = Make(Credit::kImca, Permutation::kOff, rnd);
+  auto scorer = Make("imca", Permutation::kOff, rnd);
   // Input: 13 state floats (2 agents x (1 + 5) one-hots + 1 treasure bit), then
   // 5 action one-hots for agent 1 and 5 for agent 2. Target weights: 0.5 u for
   // agent 1's action u, 1 for agent 2's action 0.
@@ -90,7 +90,7 @@ TEST_F(RndScorerTest, CounterfactualsOfADeepNormalisedModelEqualScoringTheAltern
   // scoring each alternative joint action as a transition of its own must give
   // the same novelties (eq. 9), for either slot order.
   for (Permutation permutation : {Permutation::kOff, Permutation::kCanonical}) {
-    auto scorer = Make(Credit::kImca, permutation);
+    auto scorer = Make("imca", permutation);
     for (int i = 0; i < 20; ++i) ScoreUnroll(*scorer, testing::RandomUnroll(*scenario_, 8, 4, 11 + i), false);
     const std::vector<float> probs = {0.1f, 0.2f, 0.3f, 0.2f, 0.2f, 0.4f, 0.1f, 0.1f, 0.2f, 0.2f};
     const std::vector<int32_t> taken = {2, 1};
@@ -114,7 +114,7 @@ TEST_F(RndScorerTest, CounterfactualsOfADeepNormalisedModelEqualScoringTheAltern
 TEST_F(RndScorerTest, BonusOfARepeatedlyScoredStateFalls) {
   RndConfig rnd;
   rnd.normalize = false;
-  auto scorer = Make(Credit::kShared, Permutation::kOff, rnd);
+  auto scorer = Make("shared", Permutation::kOff, rnd);
   const v1::Unroll u = testing::RandomUnroll(*scenario_, 8, 4, 3);
   auto mean = [](const Scored& s) {
     double sum = 0;
@@ -131,8 +131,8 @@ TEST_F(RndScorerTest, BonusOfARepeatedlyScoredStateFalls) {
 }
 
 TEST_F(RndScorerTest, CanonicalPermutationGivesPermutedAgentsIdenticalBonuses) {
-  auto canonical = Make(Credit::kImca, Permutation::kCanonical);
-  auto off = Make(Credit::kImca, Permutation::kOff);
+  auto canonical = Make("imca", Permutation::kCanonical);
+  auto off = Make("imca", Permutation::kOff);
   std::vector<float> probs = {0.1f, 0.2f, 0.3f, 0.2f, 0.2f, 0.4f, 0.1f, 0.1f, 0.2f, 0.2f};
   std::vector<float> swapped(probs.begin() + kA, probs.end());
   swapped.insert(swapped.end(), probs.begin(), probs.begin() + kA);
@@ -148,7 +148,7 @@ TEST_F(RndScorerTest, CanonicalPermutationGivesPermutedAgentsIdenticalBonuses) {
 }
 
 TEST_F(RndScorerTest, IndependentCreditScoresEachAgentLocally) {
-  auto scorer = Make(Credit::kIndependent, Permutation::kOff);
+  auto scorer = Make("independent", Permutation::kOff);
   const v1::Unroll u = testing::RandomUnroll(*scenario_, 8, 4, 5);
   const Scored r = ScoreUnroll(*scorer, u, false);
   for (size_t i = 0; i < r.global.size(); ++i) {
@@ -159,12 +159,12 @@ TEST_F(RndScorerTest, IndependentCreditScoresEachAgentLocally) {
 
 TEST_F(RndScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
   const std::string path = ::testing::TempDir() + "/rnd_snapshot_" + std::to_string(getpid()) + ".pt";
-  auto scorer = Make(Credit::kImca, Permutation::kOff);
+  auto scorer = Make("imca", Permutation::kOff);
   const v1::Unroll u = testing::RandomUnroll(*scenario_, 8, 4, 7);
   for (int i = 0; i < 5; ++i) ScoreUnroll(*scorer, u, false);
   ASSERT_TRUE(scorer->Save(path).ok());
   ScorerConfig config;
-  config.credit = Credit::kImca;
+  config.credit = "imca";
   config.seed = 99;  // Other initial weights: everything must come from the file.
   auto made = MakeScorer("rnd", *scenario_, config);
   ASSERT_TRUE(made.ok());
@@ -175,7 +175,7 @@ TEST_F(RndScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
   EXPECT_EQ(a.agent_rewards, b.agent_rewards);
   // And they keep learning identically.
   EXPECT_EQ(ScoreUnroll(*scorer, u, true).global, ScoreUnroll(*restored, u, true).global);
-  auto other = Make(Credit::kShared, Permutation::kOff);
+  auto other = Make("shared", Permutation::kOff);
   EXPECT_EQ(other->Load(path).code(), absl::StatusCode::kFailedPrecondition);
   std::remove(path.c_str());
 }

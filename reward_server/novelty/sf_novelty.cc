@@ -107,17 +107,17 @@ uint64_t Mix(uint64_t h, uint64_t x) {
 }  // namespace
 
 struct SfNovelty::Impl {
-  Impl(const env::Scenario& scenario, const ScorerConfig& config, const SfConfig& sf)
+  Impl(const env::Scenario& scenario, const ScorerConfig& config, const SfConfig& sf, NoveltyReads reads)
       : n(scenario.num_agents()),
         config(config),
         sf(sf),
         encoder(scenario),
         tag(absl::StrCat(kMagic, " ", scenario.name(), " ", scenario.map().width(), "x", scenario.map().height(),
-                         " n=", n, " credit=", CreditName(config.credit),
+                         " n=", n, " credit=", config.credit,
                          " permutation=", PermutationName(config.permutation))) {
-    if (config.credit == Credit::kIndependent) {
+    if (reads == NoveltyReads::kLocal) {
       local.emplace(encoder.local_state_dim(config.permutation == Permutation::kOff), sf, config.seed);
-    } else if (config.credit != Credit::kNone) {
+    } else if (reads != NoveltyReads::kNothing) {
       joint.emplace(encoder.state_dim(), sf, config.seed);
     }
   }
@@ -269,13 +269,14 @@ void SfNovelty::Impl::ComputeLocal(const TransitionBatch& batch, bool dry_run, c
 absl::StatusOr<std::unique_ptr<SfNovelty>> SfNovelty::Create(const env::Scenario& scenario,
                                                            const ScorerConfig& config, const SfConfig& sf) {
   IMCA_RETURN_IF_ERROR(CheckNetwork("sf", sf.hidden, sf.learning_rate, sf.gamma));
+  IMCA_ASSIGN_OR_RETURN(const NoveltyReads reads, CreditReads(config.credit));
   if (sf.features < 1) return absl::InvalidArgumentError("sf features must be >= 1");
   if (sf.target_update < 1) return absl::InvalidArgumentError("sf target update period must be >= 1");
-  return std::unique_ptr<SfNovelty>(new SfNovelty(std::make_unique<Impl>(scenario, config, sf)));
+  return std::unique_ptr<SfNovelty>(new SfNovelty(std::make_unique<Impl>(scenario, config, sf, reads), reads));
 }
 
-SfNovelty::SfNovelty(std::unique_ptr<Impl> impl)
-    : LearnedNovelty("sf", impl->config.credit, impl->config.deterministic), impl_(std::move(impl)) {}
+SfNovelty::SfNovelty(std::unique_ptr<Impl> impl, NoveltyReads reads)
+    : LearnedNovelty("sf", impl->config.credit, reads, impl->config.deterministic), impl_(std::move(impl)) {}
 
 void SfNovelty::EndRequest(bool dry_run) { impl_->EndRequest(dry_run); }
 SfNovelty::~SfNovelty() = default;

@@ -66,7 +66,7 @@ class SfNovelty final : public LearnedNovelty {
   absl::StatusOr<std::string> Serialize() const override;
 
   struct Impl;
-  explicit SfNovelty(std::unique_ptr<Impl> impl);
+  SfNovelty(std::unique_ptr<Impl> impl, NoveltyReads reads);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -40,7 +40,7 @@ class SfScorerTest : public ::testing::Test {
     return ::imca::testing::ScoreSteps(scorer, {now, {}, {}, next, terminated}, dry_run);
   }
 
-  std::unique_ptr<Credited<SfNovelty>> Make(Credit credit, SfConfig sf = {}) {
+  std::unique_ptr<Credited<SfNovelty>> Make(std::string credit, SfConfig sf = {}) {
     ScorerConfig config;
     config.credit = credit;
     auto kind = SfNovelty::Create(*scenario_, config, sf);
@@ -55,7 +55,7 @@ TEST_F(SfScorerTest, SharesAndEpisodicCountsMatchHandWorkedNumbers) {
   SfConfig sf;
   sf.hidden = {};
   sf.features = 2;
-  auto scorer = Make(Credit::kImca, sf);
+  auto scorer = Make("imca", sf);
   // State input: agent 1 [row(1) | col(5)], agent 2 [row | col], treasure bit.
   // psi_0 = agent 1's column, psi_1 = twice agent 2's column.
   std::vector<float> w(2 * 13, 0.0f);
@@ -86,7 +86,7 @@ TEST_F(SfScorerTest, PsiConvergesToAnalyticSuccessorFeaturesOnAChain) {
   sf.gamma = 0.9;
   sf.target_update = 5;
   sf.learning_rate = 3e-3;
-  auto scorer = Make(Credit::kShared, sf);
+  auto scorer = Make("shared", sf);
   // Agent 1 walks 0 -> 1 -> 2 -> 3, where the episode terminates; agent 2 stays at 6.
   for (int i = 0; i < 2000; ++i) {
     Score(*scorer, {{0, 6}, {1, 6}, {2, 6}}, {{1, 6}, {2, 6}, {3, 6}}, {false, false, true}, false);
@@ -109,7 +109,7 @@ TEST_F(SfScorerTest, PsiConvergesToAnalyticSuccessorFeaturesOnAChain) {
 }
 
 TEST_F(SfScorerTest, IndependentCreditScoresEachAgentsOwnSuccessorFeatures) {
-  auto scorer = Make(Credit::kIndependent);
+  auto scorer = Make("independent");
   const Scored r = Score(*scorer, {{0, 4}}, {{1, 4}}, {false}, false);
   EXPECT_GT(r.agent_rewards[0], 0.0f);   // Agent 1 moved.
   EXPECT_EQ(r.agent_rewards[1], 0.0f);   // Agent 2 stayed: same local state.
@@ -118,11 +118,11 @@ TEST_F(SfScorerTest, IndependentCreditScoresEachAgentsOwnSuccessorFeatures) {
 
 TEST_F(SfScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
   const std::string path = ::testing::TempDir() + "/sf_snapshot_" + std::to_string(getpid()) + ".pt";
-  auto scorer = Make(Credit::kImca);
+  auto scorer = Make("imca");
   for (int i = 0; i < 5; ++i) Score(*scorer, {{0, 4}, {1, 4}}, {{1, 4}, {1, 3}}, {false, false}, false);
   ASSERT_TRUE(scorer->Save(path).ok());
   ScorerConfig config;
-  config.credit = Credit::kImca;
+  config.credit = "imca";
   config.seed = 77;
   auto made = MakeScorer("sf", *scenario_, config);
   ASSERT_TRUE(made.ok());
@@ -132,7 +132,7 @@ TEST_F(SfScorerTest, SnapshotRoundTripGivesIdenticalOutputs) {
   const Scored b = Score(*restored, {{2, 4}}, {{2, 3}}, {false}, true);
   EXPECT_EQ(a.global, b.global);
   EXPECT_EQ(a.contributions, b.contributions);
-  auto other = Make(Credit::kShared);
+  auto other = Make("shared");
   EXPECT_EQ(other->Load(path).code(), absl::StatusCode::kFailedPrecondition);
   std::remove(path.c_str());
 }
