@@ -10,8 +10,8 @@ import tempfile
 import time
 import unittest
 
-from imca_tools import binaries, experiment
-from imca_tools.experiment import cell_id  # where a cell's run folder is
+from imca_tools import binaries, grid, presets, runner
+from imca_tools.grid import cell_id  # where a cell's run folder is
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXPERIMENT = binaries.module_argv("experiment")
@@ -35,28 +35,28 @@ def grid_file(directory, entries, name="tiny"):
 class PresetsTest(unittest.TestCase):
     def test_maddpg_rows_parse_and_are_labelled_by_their_algorithm(self):
         for preset in ("paper", "edti"):
-            cells = experiment.expand(experiment.presets()[preset]["entries"], preset)
-            experiment.check_flags(cells)  # Every cell's flags are valid ./imca train flags.
-            label = experiment.labeller(cells)
+            cells = grid.expand(presets.presets()[preset]["entries"], preset)
+            grid.check_flags(cells)  # Every cell's flags are valid ./imca train flags.
+            label = grid.labeller(cells)
             labels = {label(cell) for cell in cells}
             self.assertTrue({"maddpg none", "maddpg imca", "none", "imca"} <= labels, (preset, labels))
             maddpg = [cell for cell in cells if cell["flags"].get("algo") == "maddpg"]
             self.assertEqual(len(maddpg), (3 if preset == "paper" else 2) * 2 * 5, preset)
             # MAPPO's cells keep their ids (and so their finished runs).
             self.assertIn("coop_nav-count-imca-off-s1-2000k" if preset == "paper" else "pass-count-imca-off-s1-3000k",
-                          {experiment.cell_id(cell) for cell in cells})
+                          {grid.cell_id(cell) for cell in cells})
 
     def test_seed_by_seed_presets_hold_whole_seeds_of_every_method(self):
         for preset, per_seed, seeds in (("frontier", 25, 10), ("multi_room3", 5, 5)):
-            cells = experiment.expand(experiment.presets()[preset]["entries"], preset)
-            experiment.check_flags(cells)
+            cells = grid.expand(presets.presets()[preset]["entries"], preset)
+            grid.check_flags(cells)
             self.assertEqual(len(cells), per_seed * seeds, preset)
-            self.assertEqual(len({experiment.cell_id(cell) for cell in cells}), len(cells), preset)
+            self.assertEqual(len({grid.cell_id(cell) for cell in cells}), len(cells), preset)
             # Any prefix of whole seeds holds every method: seed k's cells come before seed k+1's.
             self.assertEqual([cell["seed"] for cell in cells],
                              [seed for seed in range(1, seeds + 1) for _ in range(per_seed)], preset)
             self.assertTrue(all(cell["flags"].get("deterministic") for cell in cells), preset)
-        label = experiment.labeller(cells)  # multi_room3: the reward kind names each bonus.
+        label = grid.labeller(cells)  # multi_room3: the reward kind names each bonus.
         self.assertEqual({(cell["reward"], label(cell)) for cell in cells},
                          {("count", "none"), ("count", "shared"), ("count", "imca"), ("rnd", "shared"),
                           ("rnd", "imca")})
@@ -202,7 +202,7 @@ class ExperimentRunTest(unittest.TestCase):
                 f"'aten=avx2 openblas=Haswell' where the grid's cells run 'aten=default openblas=Prescott' "
                 f"(set by {first})"))
             self.assertIn("OPENBLAS_CORETYPE", last)
-            self.assertIsNone(experiment.finished(os.path.join(out, "cells", second), dict(cell, seed=2)),
+            self.assertIsNone(runner.finished(os.path.join(out, "cells", second), dict(cell, seed=2)),
                               "the refused cell must not finish")
             # The first cell to name its kernels set the grid's; --status shows why the cell stopped.
             with open(os.path.join(out, "kernels.json")) as f:

@@ -297,7 +297,7 @@ class PrometheusScrapeTest(unittest.TestCase):
         }
         for what, text in broken.items():
             self.assertNotEqual(exposition_problems(text), [], what)
-        # promtool itself lets the histogram ones through (RELIABILITY.md 4).
+        # promtool itself lets a histogram without its +Inf bucket through.
         r = subprocess.run(["promtool", "check", "metrics"], input=broken["no +Inf"], capture_output=True,
                            text=True)
         self.assertEqual(r.returncode, 0, "promtool now catches a missing +Inf: the check here may go")

@@ -75,7 +75,7 @@ def facts():
 
 def per_agent_reward(reward):
     """True for the reward kinds whose per-agent bonus is the method itself
-    (EITI, EDTI; BASELINES.md 1): they serve no shared or imca credit, and run
+    (EITI, EDTI; docs/baselines.md): they serve no shared or imca credit, and run
     with credit independent (or none) and beta 1, their own coefficients
     (--eta, --beta-t) setting the scale."""
     return "imca" not in facts()["rewards"][reward]

@@ -29,12 +29,12 @@ import subprocess
 import sys
 import time
 
-from . import binaries, experiment, runs
-from .experiment import ExperimentError, cell_id
+from . import binaries, runner, runs
+from .grid import ExperimentError, cell_dir, cell_id, deterministic, only
 
 BACKENDS = ("local", "slurm", "k8s")
 # Resources per task when neither the grid's "resources" nor a flag sets them:
-# one run keeps about two cores busy (experiment.default_jobs) and peaks
+# one run keeps about two cores busy (runner.default_jobs) and peaks
 # under 2 GB (LibTorch, the replay of one iteration, three processes).
 DEFAULT_RESOURCES = {"cpus_per_task": 2, "mem": "4G", "time": "", "partition": ""}
 # Slurm states of a task that is queued or running (squeue --states).
@@ -138,27 +138,27 @@ def run_cell(queue_file, index, out):
     if not 0 <= index < len(record["cells"]):
         raise ExperimentError(f"--run-cell: index {index} is outside the submission's {len(record['cells'])} cells")
     cell = record["cells"][index]
-    run_dir = os.path.join(out, "cells", cell_id(cell))
+    run_dir = cell_dir(out, cell)
     where = f"{socket.gethostname()}, submission {record.get('number')} task {index}"
-    lock = experiment.lock_cell(out, cell)
+    lock = runner.lock_cell(out, cell)
     if lock is None:
         print(f"imca experiment: cell {cell_id(cell)} is running in another process; this task leaves it "
               f"({where})", flush=True)
         return 1
     with lock:
-        if experiment.finished(run_dir, cell):
+        if runner.finished(run_dir, cell):
             print(f"imca experiment: cell {cell_id(cell)} is already finished ({where})", flush=True)
             return 0
         print(f"imca experiment: cell {cell_id(cell)} starts ({where}); log {run_dir}/train.log", flush=True)
-        proc = experiment.start_cell(cell, run_dir)
+        proc = runner.start_cell(cell, run_dir)
         stop = lambda *_: proc.poll() is None and proc.send_signal(signal.SIGTERM)
         signal.signal(signal.SIGTERM, stop)
         signal.signal(signal.SIGINT, stop)
         conflict = None
-        # A deterministic cell runs on the grid's kernels (experiment.check_kernels),
+        # A deterministic cell runs on the grid's kernels (runner.check_kernels),
         # checked until its servers have all named theirs.
-        while experiment.deterministic(cell) and proc.poll() is None:
-            conflict, settled = experiment.check_kernels(out, cell, run_dir)
+        while deterministic(cell) and proc.poll() is None:
+            conflict, settled = runner.check_kernels(out, cell, run_dir)
             if conflict:
                 stop()
             if conflict or settled:
@@ -166,13 +166,13 @@ def run_cell(queue_file, index, out):
             time.sleep(0.5)
         code = proc.wait()
     if conflict:
-        experiment.note_refusal(run_dir, conflict)
+        runner.note_refusal(run_dir, conflict)
         print(f"imca experiment: {conflict} ({where})", flush=True)
         return EXIT_REFUSED  # The node's CPU kernels: a retry on it would be refused again.
-    summary = experiment.finished(run_dir, cell)
+    summary = runner.finished(run_dir, cell)
     if summary is None:
         print(f"imca experiment: cell {cell_id(cell)} did not finish (exit {code}): "
-              f"{experiment.last_line(os.path.join(run_dir, 'train.log'))}", flush=True)
+              f"{runner.last_line(os.path.join(run_dir, 'train.log'))}", flush=True)
         # Not EXIT_REFUSED: a run that started and failed may succeed on a retry.
         return 1
     print(f"imca experiment: cell {cell_id(cell)} finished: success {summary['final_success_rate']:.0%}", flush=True)
@@ -319,7 +319,7 @@ def wait_slurm(out, record, poll):
             if index in live or index in reported:
                 continue
             reported.add(index)
-            summary = experiment.finished(os.path.join(out, "cells", cell_id(cell)), cell)
+            summary = runner.finished(cell_dir(out, cell), cell)
             state = f"success {summary['final_success_rate']:.0%}" if summary else \
                 f"FAILED ({tasks.get(index, ('ended', ''))[0]})"
             print(f"[{len(reported)}/{len(record['cells'])}] {cell_id(cell)}: {state}", file=sys.stderr, flush=True)
@@ -409,7 +409,7 @@ def k8s_manifest(record, out, res, jobs, image, claim, results_dir):
 def manifest_text(docs):
     """The manifest's YAML: multi-line strings as blocks (the cells, one a
     line), repeated values in full (no anchors)."""
-    import yaml  # python3-yaml, a host package
+    import yaml  # python3-yaml is a host package: the image that runs --run-cell has none
 
     class Dumper(yaml.SafeDumper):
         def ignore_aliases(self, data):
@@ -442,11 +442,11 @@ def write_k8s(out, grid_name, todo, res, jobs, image, claim, results_dir):
 def submit(args, grid, cells, out):
     """--backend slurm|k8s: submits the cells that are neither finished nor
     queued or running (only those --only names, if given). Returns the exit code."""
-    unfinished = {cell_id(c) for c, _ in experiment.unfinished_cells(cells, out)}
+    unfinished = {cell_id(c) for c, _ in runner.unfinished_cells(cells, out)}
     res = resources(grid, args)
     records = load_submissions(out)
     live = live_cells(out, records) if args.backend == "slurm" else {}
-    todo = [c for c in experiment.only(cells, args.only) if cell_id(c) not in live and cell_id(c) in unfinished]
+    todo = [c for c in only(cells, args.only) if cell_id(c) not in live and cell_id(c) in unfinished]
     finished = len(cells) - len(unfinished)
     print(f"imca experiment: {len(cells)} cells, {finished} finished, {len(live)} queued or running, "
           f"{len(todo)} to submit; results in {out}", file=sys.stderr, flush=True)
@@ -500,7 +500,7 @@ def cell_states(out, cells):
     for cell in cells:
         cid = cell_id(cell)
         run_dir = os.path.join(out, "cells", cid)
-        summary = experiment.finished(run_dir, cell)
+        summary = runner.finished(run_dir, cell)
         if summary:
             states.append((cid, "done", f"success {summary['final_success_rate']:.0%}"))
             continue
@@ -519,7 +519,7 @@ def cell_states(out, cells):
                     where += f" {state}"
         if record is None:
             # Never submitted: not run, or a local run that is running or stopped.
-            states.append((cid, "unfinished", experiment.last_line(os.path.join(run_dir, "train.log")))
+            states.append((cid, "unfinished", runner.last_line(os.path.join(run_dir, "train.log")))
                           if os.path.isdir(run_dir) else (cid, "not run", ""))
             continue
         if record["backend"] == "k8s":
@@ -529,7 +529,7 @@ def cell_states(out, cells):
         log = os.path.join(run_dir, "train.log")
         if not os.path.exists(log):
             log = slurm_log(out, record, index)  # The task ended before the run started.
-        states.append((cid, "failed", f"{where}: {experiment.last_line(log)}"))
+        states.append((cid, "failed", f"{where}: {runner.last_line(log)}"))
     return states
 
 

@@ -24,7 +24,8 @@ import shutil
 import statistics
 import sys
 
-from . import runs, stats
+from . import options, runner, runs, stats
+from .grid import ExperimentError, cell_dir, cell_id, expand, labeller, load_saved_grid
 
 # Bootstrap resamples and their generator's seed: the same runs give the
 # same intervals.
@@ -52,7 +53,7 @@ def read_metrics(run_dir):
     return runs.read_metrics(os.path.join(run_dir, "metrics.csv"))
 
 
-def groups_of(cells, summaries, method, cell_id):
+def groups_of(cells, summaries, method):
     """{(scenario, reward, method): [(cell, summary or None)]} in grid order."""
     groups = {}
     for cell in cells:
@@ -77,9 +78,9 @@ def fmt_steps(row, pct):
     return f"{text} ({reached}/{total})"
 
 
-def write(out, cells, summaries, method, cell_id):
-    groups = groups_of(cells, summaries, method, cell_id)
-    write_runs_csv(out, cells, summaries, method, cell_id)
+def write(out, cells, summaries, method):
+    groups = groups_of(cells, summaries, method)
+    write_runs_csv(out, cells, summaries, method)
     rows = []
     for (scenario, reward, label), members in groups.items():
         done = [(c, s) for c, s in members if s is not None]
@@ -102,14 +103,14 @@ def write(out, cells, summaries, method, cell_id):
             # The training episodes' mean team return at the end (the
             # dense-reward tasks' measure; the last metrics row's window).
             finals = [float(rows_[-1]["episode_return"]) for rows_ in
-                      (read_metrics(os.path.join(out, "cells", cell_id(c))) for c, _ in done) if rows_]
+                      (read_metrics(cell_dir(out, c)) for c, _ in done) if rows_]
             if finals:
                 row["return_mean"], row["return_ci95"] = mean_ci(finals)
         rows.append(row)
     write_table_csv(out, rows)
     write_table_md(out, rows)
     write_stats(out, groups)
-    plots(out, groups, method, cell_id)
+    plots(out, groups, method)
 
 
 def fmt_interval(point, low, high, fmt):
@@ -227,7 +228,7 @@ def write_stats(out, groups):
         f.write("\n".join(lines) + "\n")
 
 
-def write_runs_csv(out, cells, summaries, method, cell_id):
+def write_runs_csv(out, cells, summaries, method):
     fields = ["cell", "scenario", "reward", "method", "credit", "permutation", "seed", "budget", "finished",
               "final_success_rate", "steps_to_80pct_success", "steps_to_90pct_success", "wall_seconds",
               "env_steps_per_sec", "wall_to_90pct_success"]
@@ -297,7 +298,9 @@ def curve(rows, grid, key="success_rate"):
     return out
 
 
-def plots(out, groups, method, cell_id):
+def plots(out, groups, method):
+    # matplotlib is heavy: imported when something is to be drawn, not to
+    # read or run a grid.
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -309,15 +312,15 @@ def plots(out, groups, method, cell_id):
     # against EITI and EDTI) also gets one plot of all its methods.
     for task in tasks_of(groups).values():
         if not task["reward"]:
-            curves_figure(out, [(label, groups[key]) for key, label in task["methods"].items()], cell_id, plt,
+            curves_figure(out, [(label, groups[key]) for key, label in task["methods"].items()], plt,
                           f"{task['name']}: mean and 95% CI over seeds", os.path.join(out, f"curves-{task['file']}.png"))
     gif_dir = os.path.join(out, "gifs")
     for (scenario, reward), methods in scenarios.items():
         if not any(s is not None for _, members in methods for _, s in members):
             continue  # Nothing finished yet for this scenario.
-        curves_figure(out, methods, cell_id, plt, f"{scenario} + {reward}: mean and 95% CI over seeds",
+        curves_figure(out, methods, plt, f"{scenario} + {reward}: mean and 95% CI over seeds",
                       os.path.join(out, f"curves-{scenario}-{reward}.png"))
-        curves_figure(out, methods, cell_id, plt, f"{scenario} + {reward}: team return, mean and 95% CI over seeds",
+        curves_figure(out, methods, plt, f"{scenario} + {reward}: team return, mean and 95% CI over seeds",
                       os.path.join(out, f"returns-{scenario}-{reward}.png"), key="episode_return")
         # GIF of each method's final policy (its first finished seed).
         os.makedirs(gif_dir, exist_ok=True)
@@ -328,7 +331,7 @@ def plots(out, groups, method, cell_id):
                     name = f"{scenario}-{reward}-{label.replace('/', '_').replace(' ', '_')}.gif"
                     shutil.copyfile(gif, os.path.join(gif_dir, name))
                     break
-        shares_plot(out, scenario, reward, methods, cell_id, plt)
+        shares_plot(out, scenario, reward, methods, plt)
     for task in tasks_of(groups).values():
         profile_plot(out, task, groups, plt)
 
@@ -358,14 +361,14 @@ def profile_plot(out, task, groups, plt):
     plt.close(fig)
 
 
-def curves_figure(out, methods, cell_id, plt, title, path, key="success_rate"):
+def curves_figure(out, methods, plt, title, path, key="success_rate"):
     """A metrics column over env steps (evaluation success by default), one
     line (mean, 95% CI band) per method."""
     if not any(s is not None for _, members in methods for _, s in members):
         return
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for label, members in methods:
-        curves = [read_metrics(os.path.join(out, "cells", cell_id(c))) for c, s in members if s is not None]
+        curves = [read_metrics(cell_dir(out, c)) for c, s in members if s is not None]
         curves = [r for r in curves if r]
         if not curves:
             continue
@@ -393,14 +396,14 @@ def curves_figure(out, methods, cell_id, plt, title, path, key="success_rate"):
     plt.close(fig)
 
 
-def shares_plot(out, scenario, reward, methods, cell_id, plt):
+def shares_plot(out, scenario, reward, methods, plt):
     """Credit shares of the first finished imca run: per agent over training
     (metrics.csv), and over one late training episode (credit_trace.csv)."""
     for label, members in methods:
         if not label.startswith("imca"):
             continue
         for c, s in members:
-            run_dir = os.path.join(out, "cells", cell_id(c))
+            run_dir = cell_dir(out, c)
             rows = read_metrics(run_dir)
             if s is None or not rows or "share_1" not in rows[0]:
                 continue
@@ -459,13 +462,27 @@ def trace_panel(ax, trace, n):
     ax.grid(alpha=0.3)
 
 
+def write_grid(out, cells):
+    """The tables and plots of `cells` (a grid's, imca_tools.grid) as OUT's
+    cell folders hold them; returns {cell id: summary, None if unfinished}."""
+    results = {cell_id(c): runner.finished(cell_dir(out, c), c) for c in cells}
+    write(out, cells, results, labeller(cells))
+    return results
+
+
 def main(argv=None):
     """Only (re)write the tables and plots of an experiment folder DIR."""
-    from . import experiment, options
     p = options.OneLineParser(prog="imca experiment --report", description=__doc__)
     p.add_argument("dir", metavar="DIR", help="an experiment folder (its grid.json and cells/)")
     args = p.parse_args(options.dashed(sys.argv[1:] if argv is None else argv))
-    return experiment.main(["--report", args.dir])
+    out = os.path.abspath(args.dir)
+    try:
+        write_grid(out, expand(load_saved_grid(out)["entries"], "grid.json"))
+    except ExperimentError as error:
+        print(f"imca experiment: {error}", file=sys.stderr)
+        return 2
+    print(f"imca experiment: table {os.path.join(out, 'table.md')}", file=sys.stderr)
+    return 0
 
 
 if __name__ == "__main__":

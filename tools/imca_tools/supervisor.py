@@ -5,6 +5,7 @@ Services starts a run's processes, restarts the ones that die or stall (with
 backoff, up to a cap), stops them in dependency order, and logs each
 incarnation; run_processes finds a run's live processes by name.
 """
+import ctypes
 import os
 import signal
 import subprocess
@@ -26,7 +27,6 @@ def _die_with_parent():
     Ctrl-C reaches only the launcher, which then stops the children in order."""
     os.setsid()
     try:
-        import ctypes
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except OSError:
         pass

@@ -32,6 +32,7 @@ def progress_line(row, budget, restarts=0):
 
 
 def plot(run_dir, rows, title):
+    # matplotlib is heavy: imported once a run has something to draw.
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -1,4 +1,3 @@
-#!/usr/bin/python3
 """A grid's finished cells, small enough to commit: for each cell whose
 summary.json says it reached its budget, config.json, summary.json and the
 report's columns of metrics.csv, with the grid's grid.json, in one tar.xz.
@@ -6,7 +5,7 @@ Unpacked into the results folder, `./imca experiment --report DIR` rewrites
 the same tables and the same preset command resumes after the packed cells
 (the rest of a cell folder, checkpoints and policies, is not kept).
 
-  PYTHONPATH=tools docs/results/frontier-v3/pack.py results/frontier-v3 docs/results/frontier-v3/cells.tar.xz
+  PYTHONPATH=tools python3 -m imca_tools.pack results/frontier-v3 docs/results/frontier-v3/cells.tar.xz
   mkdir -p results/frontier-v3 && tar -xJf docs/results/frontier-v3/cells.tar.xz -C results/frontier-v3
 """
 import csv
@@ -15,7 +14,9 @@ import os
 import sys
 import tarfile
 
-from imca_tools import experiment, runs
+from . import runs
+from .grid import cell_dir, cell_id, expand, load_saved_grid
+from .runner import finished
 
 # What the report reads of metrics.csv (tools/imca_tools/report.py); the rest
 # stays in the cell folders.
@@ -37,10 +38,10 @@ def main(out, archive):
     packed = 0
     with tarfile.open(archive, "w:xz") as tar:
         add(tar, "grid.json", read(os.path.join(out, "grid.json")))
-        grid = experiment.load_saved_grid(out)
-        for cell_spec in experiment.expand(grid["entries"], "grid.json"):
-            run_dir, cell = experiment.cell_dir(out, cell_spec), experiment.cell_id(cell_spec)
-            if not experiment.finished(run_dir, cell_spec):
+        grid = load_saved_grid(out)
+        for cell_spec in expand(grid["entries"], "grid.json"):
+            run_dir, cell = cell_dir(out, cell_spec), cell_id(cell_spec)
+            if not finished(run_dir, cell_spec):
                 continue
             for name in ("config.json", "summary.json"):
                 add(tar, f"cells/{cell}/{name}", read(os.path.join(run_dir, name)))
@@ -57,5 +58,5 @@ def main(out, archive):
 
 if __name__ == "__main__":
     if len(sys.argv) != 3:
-        sys.exit("usage: pack.py RESULTS_DIR ARCHIVE.tar.xz")
+        sys.exit("usage: python3 -m imca_tools.pack RESULTS_DIR ARCHIVE.tar.xz")
     main(sys.argv[1], sys.argv[2])

@@ -40,8 +40,8 @@ import urllib.request
 
 import yaml
 
-from . import binaries, options, plan, runs
-from .binaries import BIN, ROOT
+from imca_tools import binaries, cluster, grid, options, plan, runner, runs
+from imca_tools.binaries import BIN, ROOT
 
 DEPLOY = os.path.join(ROOT, "deploy")
 COMPOSE = os.path.join(DEPLOY, "docker-compose.yml")
@@ -677,9 +677,7 @@ def experiment_pod_test(figures):
     Job's container command for a small cell, with the claim and the
     ConfigMap as folders and JOB_COMPLETION_INDEX set as the Job controller
     sets it, trains the cell to its budget."""
-    from . import cluster, experiment
-
-    cell, = experiment.expand([{"scenario": "coop_nav", "reward": "count", "credit": "imca", "steps": 16000,
+    cell, = grid.expand([{"scenario": "coop_nav", "reward": "count", "credit": "imca", "steps": 16000,
                                 "flags": {"actors": 1, "envs_per_actor": 8, "batch_steps": 1024}}], "pod")
     record = {"number": 1, "backend": "k8s", "cells": [cell]}
     res = dict(cluster.DEFAULT_RESOURCES, cpus_per_task=1, mem="2G")
@@ -696,8 +694,8 @@ def experiment_pod_test(figures):
         started = time.time()
         r = podman("run", "--rm", "-e", "JOB_COMPLETION_INDEX=0", "-v", f"{claim}:{mounts['results']}",
                    "-v", f"{queue}:{mounts['queue']}:ro", IMAGE, *container["command"], check=False, timeout=600)
-        run_dir = os.path.join(claim, "pod", "cells", experiment.cell_id(cell))
-        summary = experiment.finished(run_dir, cell)
+        run_dir = grid.cell_dir(os.path.join(claim, "pod"), cell)
+        summary = runner.finished(run_dir, cell)
         # The run folder as a local run leaves it, its pictures included.
         missing = [f for f in ("learning_curve.png", "episode.gif") if not os.path.exists(os.path.join(run_dir, f))]
         log = open(os.path.join(run_dir, "train.log")).read() if os.path.exists(run_dir) else ""
