@@ -12,6 +12,7 @@
 #include "base/lap.h"
 #include "base/status_macros.h"
 #include "learner/algorithms/acting.h"
+#include "protocol/policy_mlp.h"
 #include "protocol/unroll_check.h"
 #include "rpc/grpc_util.h"
 #include "rpc/service_flags.h"
@@ -74,14 +75,14 @@ Actor::Actor(const env::Scenario* scenario, const ActorConfig& config,
       reward_(v1::RewardService::NewStub(reward_server)),
       envs_(scenario, config.num_envs, config.seed),
       eval_envs_(scenario, std::max(config.eval_envs, 1), config.seed ^ 0xe7a1e7a1e7a1ULL),
-      rng_(config.seed * 7919 + 17),
+      rng_(ActionSamplingSeed(config.seed)),
       incarnation_(config.incarnation != 0 ? config.incarnation : RandomIncarnation()),
       counters_(RegisterMetrics(&registry_)),
       sync_unrolls_(std::max(config.sync_unrolls, 0)),
       policies_(learner_.get(), *scenario,
                 PolicyClientOptions{config.actor_id, config.rpc_timeout, config.tls}, &stop_,
                 [this](const v1::Policy& policy) { return Admit(policy); },
-                [this] { WriteStatus("waiting_policy", /*force=*/false); }),
+                [this] { WriteStatus(v1::ActorStatus::WAITING_POLICY, /*force=*/false); }),
       sender_(PushUnrollsOf(learner_.get()),
               UnrollSenderOptions{config.actor_id, config.unrolls_per_stream, config.ack_timeout,
                                   counters_.reconnects},
@@ -140,8 +141,9 @@ Actor::Counters Actor::RegisterMetrics(metrics::Registry* registry) {
          "mostly waiting for the next policy)."},
         {{"phase", PhaseName(static_cast<Phase>(p))}}));
   }
-  c.refused = AddRejectionCounters(registry, {"imca_actor_unrolls_refused_total", Type::kCounter,
-                                              "Unrolls the learner refused or dropped, by reason."});
+  c.refused = registry->AddCounterPerValue(
+      {"imca_actor_unrolls_refused_total", Type::kCounter, "Unrolls the learner refused or dropped, by reason."},
+      "reason", RejectionReasons());
   return c;
 }
 
@@ -296,7 +298,7 @@ Actor::Phase Actor::AfterFailure(const absl::Status& status, Phase retry, const 
   // has no ack.
   std::fprintf(stderr, "%s: %s; retrying\n", config_.actor_id.c_str(),
                DescribeRpcFailure(peer, status, config_.tls).c_str());
-  WriteStatus("retrying", /*force=*/false);
+  WriteStatus(v1::ActorStatus::RETRYING, /*force=*/false);
   counters_.retries->Increment();
   if (policies_.LearnerDone()) return Phase::kDone;
   backoff->Wait([this] { return stop_.stopped(); });
@@ -307,7 +309,7 @@ Actor::Phase Actor::AfterDelivery(int64_t version_acted) {
   if (sync_unrolls_ > 0 && version_unrolls_ >= sync_unrolls_) {
     // Synchronous: this version's share is delivered; act next with the
     // policy the learner trains on it.
-    WriteStatus("waiting_policy", /*force=*/false);
+    WriteStatus(v1::ActorStatus::WAITING_POLICY, /*force=*/false);
     if (!policies_.Await(version_acted + 1)) return Phase::kDone;
   } else {
     policies_.Refresh(/*wait=*/false);
@@ -320,7 +322,7 @@ Actor::Phase Actor::AfterDelivery(int64_t version_acted) {
 absl::Status Actor::Run() {
   std::fprintf(stderr, "%s: incarnation %016llx\n", config_.actor_id.c_str(),
                static_cast<unsigned long long>(incarnation_));
-  WriteStatus("waiting_policy", /*force=*/true);
+  WriteStatus(v1::ActorStatus::WAITING_POLICY, /*force=*/true);
   Backoff backoff;
   v1::Unroll unroll;  // The unroll in hand; reused: Clear() keeps the packed fields' capacity.
   int pushes = 0;     // Of the unroll in hand: more than one are resends.
@@ -372,7 +374,7 @@ absl::Status Actor::Run() {
         // to the learner's older policy, whose share it has not started.
         version_unrolls_ = unroll.policy_version() == policies_.version() ? version_unrolls_ + 1 : 0;
         backoff.Reset();
-        WriteStatus("acting", /*force=*/false);
+        WriteStatus(v1::ActorStatus::ACTING, /*force=*/false);
         phase = Phase::kChoosingPolicy;
         break;
       }
@@ -386,12 +388,12 @@ absl::Status Actor::Run() {
   }
   sender_.Close();
   if (trace_.has_value()) trace_->Flush();
-  WriteStatus("done", /*force=*/true);
+  WriteStatus(v1::ActorStatus::DONE, /*force=*/true);
   // OK, unless something this actor cannot retry stopped it.
   return !error_.ok() ? error_ : policies_.error();
 }
 
-void Actor::WriteStatus(const char* state, bool force) {
+void Actor::WriteStatus(v1::ActorStatus::State state, bool force) {
   if (config_.status_file.empty()) return;
   const auto now = std::chrono::steady_clock::now();
   if (!force && now - status_written_ < config_.status_period) return;

@@ -173,7 +173,7 @@ class Actor {
   Phase AfterDelivery(int64_t version_acted);
   // Writes config_.status_file if status_period has passed since the last
   // write (or `force`).
-  void WriteStatus(const char* state, bool force);
+  void WriteStatus(v1::ActorStatus::State state, bool force);
   struct Counters;
   // Registers the actor's families in `registry`.
   static Counters RegisterMetrics(metrics::Registry* registry);

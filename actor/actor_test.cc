@@ -71,7 +71,9 @@ class FlakyLearnerService final : public v1::LearnerService::Service {
           while (!context->IsCancelled()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
           return false;  // Injected: no ack until cancelled.
         },
-        [&](const v1::PushUnrollsResponse& ack) { return !ack.accepted() || ++accepted_ != drop_ack_of_; });
+        [&](const v1::PushUnrollsResponse& ack) {
+          return ack.rejection() != v1::REJECTION_NONE || ++accepted_ != drop_ack_of_;
+        });
     return real_.PushUnrollsInternal(context, &hooked);
   }
   grpc::Status GetPolicy(grpc::ServerContext* context, const v1::GetPolicyRequest* request,
@@ -230,7 +232,7 @@ TEST(ActorFaultTest, LostAcksHungStreamsAndFailedScoresLoseNothingAndTrainNothin
     ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(line, &written, options).ok()) << line;
   }
   std::filesystem::remove(config.status_file);
-  EXPECT_EQ(written.state(), "done");
+  EXPECT_EQ(written.state(), v1::ActorStatus::DONE);
   ASSERT_EQ(written.phase_seconds_size(), actor::Actor::kNumPhases);
   double phases = 0;
   for (const char* phase : {"acting", "scoring", "pushing", "choosing_policy"}) {

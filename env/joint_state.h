@@ -10,8 +10,8 @@
 
 namespace imca::env {
 
-// A scenario's state as CMAE's gridworld code sees it (BASELINES.md 3.1,
-// docs/baselines.md "CMAE"): a tuple of discrete variables, each agent's
+// A scenario's state as CMAE's gridworld code sees it (docs/baselines.md,
+// "CMAE"): a tuple of discrete variables, each agent's
 // column x and row y in agent order, then each non-player entity's x and y
 // (push_box_cmae: the box centre), then, if the scenario has object bits,
 // z (the doors' bits: CMAE's door code up to relabelling) — CMAE's own

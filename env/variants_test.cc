@@ -1,7 +1,7 @@
-// The task versions of CMAE and MACE (BASELINES.md 4.3, 6.2) against ports of
-// the released code's step rules (IouJenLiu/CMAE env/rooms.py,
-// secret_rooms.py, push_box.py; SigmaBM/MACE src/envs/grid_world/room.py,
-// secret_rooms.py), written here from those rules and not from our env: every
+// The task versions of CMAE and MACE (docs/scenarios.md, "The task versions
+// of CMAE and MACE") against ports of the released code's step rules
+// (CMAE's env/rooms.py, env/secret_rooms.py, env/push_box.py; MACE's
+// src/envs/grid_world/room.py, secret_rooms.py), written here from those rules and not from our env: every
 // step of random play from states near the switches, doors and box must give
 // the same positions, walls, doors, reward and end.
 #include <algorithm>

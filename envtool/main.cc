@@ -70,12 +70,13 @@ class Episode {
   // each state's JSON line.
   using Annotate = std::function<std::string(const int32_t* state)>;
 
-  Episode(const env::Scenario& scenario, const Renderer& renderer, std::vector<int32_t> state, uint64_t seed,
+  // `rng` draws the scenario's random moves from `state` on.
+  Episode(const env::Scenario& scenario, const Renderer& renderer, std::vector<int32_t> state, Rng rng,
           bool json, GifWriter* gif, Annotate annotate = nullptr)
       : scenario_(scenario),
         renderer_(renderer),
         state_(std::move(state)),
-        rng_(seed),
+        rng_(rng),
         json_(json),
         gif_(gif),
         annotate_(std::move(annotate)),
@@ -216,7 +217,7 @@ class PolicyProbs {
 void Rollout(Episode& episode, const env::Scenario& scenario, PolicyProbs& policy, uint64_t seed) {
   const int n = scenario.num_agents(), a_count = scenario.num_actions();
   std::vector<int32_t> actions(n);
-  Rng rng(seed * 7919 + 17);
+  Rng rng(ActionSamplingSeed(seed));
   episode.Start();
   while (!episode.over()) {
     const std::vector<float>& probs = policy.Of(episode.state());
@@ -251,14 +252,18 @@ int Main(const std::vector<char*>& args) {
   auto renderer = Renderer::Create(&scenario, absl::GetFlag(FLAGS_cell_px));
   if (!renderer.ok()) return Fail(kUsageError, absl::StrCat("--cell_px: ", renderer.status().message()));
 
+  // The stream of the scenario's draws: a VecEnv environment's (env::VecEnv::
+  // EnvSeed), so --seed with that value plays its episode; from --state the
+  // draws start afresh from the seed, as the environment's after a reset to
+  // given states.
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  Rng rng(seed);
   std::vector<int32_t> state(scenario.state_size());
   if (const std::string text = absl::GetFlag(FLAGS_state); !text.empty()) {
     auto parsed = ParseState(text, scenario);
     if (!parsed.ok()) return Fail(kUsageError, absl::StrCat("--state: ", parsed.status().message()));
     state = *std::move(parsed);
   } else {
-    Rng rng(seed);
     scenario.Reset(rng, state.data());
   }
 
@@ -296,15 +301,13 @@ int Main(const std::vector<char*>& args) {
     gif = *std::move(created);
   }
   const bool json = absl::GetFlag(FLAGS_json);
-  // The episode's draws start afresh from the seed, so --state holding the
-  // state this Reset made replays the same episode.
   std::optional<PolicyProbs> probs;
   Episode::Annotate annotate;
   if (policy) {
     probs.emplace(scenario, *policy);
     annotate = [&probs](const int32_t* state) { return probs->Json(state); };
   }
-  Episode episode(scenario, *renderer, std::move(state), seed, json, gif.get(), std::move(annotate));
+  Episode episode(scenario, *renderer, std::move(state), rng, json, gif.get(), std::move(annotate));
   if (command == "play") {
     Play(episode, scenario, json);
   } else if (command == "rollout") {

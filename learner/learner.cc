@@ -136,30 +136,6 @@ const metrics::Family kPolicyLag{"imca_learner_policy_lag_versions", metrics::Ty
 
 }  // namespace
 
-bool IsRejection(const absl::Status& status) {
-  switch (status.code()) {
-    case absl::StatusCode::kInvalidArgument:
-    case absl::StatusCode::kResourceExhausted:
-    case absl::StatusCode::kFailedPrecondition:
-    case absl::StatusCode::kAborted:
-    case absl::StatusCode::kAlreadyExists:
-      return true;
-    default:  // Accepted, or not refused for the unroll itself (stopping, gone).
-      return false;
-  }
-}
-
-v1::Rejection RejectionOf(const absl::Status& status) {
-  switch (status.code()) {
-    case absl::StatusCode::kOk: return v1::REJECTION_NONE;
-    case absl::StatusCode::kFailedPrecondition: return v1::REJECTION_STALE;
-    case absl::StatusCode::kAborted: return v1::REJECTION_AHEAD;
-    case absl::StatusCode::kResourceExhausted: return v1::REJECTION_OVER_CAP;
-    case absl::StatusCode::kAlreadyExists: return v1::REJECTION_DUPLICATE;
-    default: return v1::REJECTION_INVALID;
-  }
-}
-
 Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std::unique_ptr<Algorithm> algorithm)
     : scenario_(scenario),
       config_(config),
@@ -187,7 +163,7 @@ Learner::Learner(const env::Scenario* scenario, const LearnerConfig& config, std
 }
 
 void Learner::RegisterMetrics() {
-  dropped_ = AddRejectionCounters(&registry_, kUnrollsDropped);
+  dropped_ = registry_.AddCounterPerValue(kUnrollsDropped, "reason", RejectionReasons());
   policy_lag_ = &registry_.AddHistogram(kPolicyLag);
   // One lock of mu_ per scrape for all of them.
   registry_.AddSnapshot([this](metrics::Snapshot& s) {
@@ -210,10 +186,10 @@ void Learner::RegisterMetrics() {
 
 int64_t Learner::IterationBytes(int64_t steps) const { return algorithm_->IterationBytes(steps); }
 
-absl::Status Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
-  const absl::Status status = queue_.Push(std::move(unroll), cancelled);
-  if (IsRejection(status)) dropped_[RejectionOf(status)]->Increment();
-  return status;
+absl::StatusOr<PushOutcome> Learner::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
+  absl::StatusOr<PushOutcome> outcome = queue_.Push(std::move(unroll), cancelled);
+  if (outcome.ok() && !outcome->accepted()) dropped_[outcome->rejection]->Increment();
+  return outcome;
 }
 
 void Learner::CountEpisodes(const v1::Unroll& u) {
@@ -223,18 +199,22 @@ void Learner::CountEpisodes(const v1::Unroll& u) {
   for (bool s : u.eval_success()) PushWindow(&eval_success_, s, config_.metrics_window);
 }
 
-absl::Status Learner::Validate(const v1::Unroll& unroll) const {
-  IMCA_RETURN_IF_ERROR(ValidateUnroll(unroll, *scenario_, {true, true, algorithm_->needs_influences()}));
+PushOutcome Learner::Validate(const v1::Unroll& unroll) const {
+  if (const absl::Status valid = ValidateUnroll(unroll, *scenario_, {true, true, algorithm_->needs_influences()});
+      !valid.ok()) {
+    return Refused(v1::REJECTION_INVALID, std::string(valid.message()));
+  }
   // A batch gathers unrolls until it holds batch_steps, so the largest is
   // batch_steps - 1 steps plus this unroll.
   const int64_t steps = UnrollSteps(unroll);
   if (const int64_t bytes = IterationBytes(config_.batch_steps - 1 + steps); bytes > config_.max_batch_bytes) {
-    return absl::ResourceExhaustedError(absl::StrFormat(
-        "unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of features here, "
-        "over the learner's cap of %.0f MB (use fewer envs or a shorter unroll)",
-        steps, bytes / 1e6, config_.max_batch_bytes / 1e6));
+    return Refused(v1::REJECTION_OVER_CAP,
+                   absl::StrFormat("unroll.length * unroll.num_envs = %d steps: a batch with it needs %.0f MB of "
+                                   "features here, over the learner's cap of %.0f MB (use fewer envs or a shorter "
+                                   "unroll)",
+                                   steps, bytes / 1e6, config_.max_batch_bytes / 1e6));
   }
-  return absl::OkStatus();
+  return PushOutcome();
 }
 
 std::shared_ptr<const v1::Policy> Learner::CurrentPolicy() const {

@@ -30,13 +30,6 @@
 
 namespace imca::learner {
 
-// Whether Learner::Push's `status` refuses the unroll itself (one of its
-// refusal codes), rather than accepting it or ending the stream.
-bool IsRejection(const absl::Status& status);
-// The typed reason of one of Learner::Push's refusal codes (one per reason,
-// learner.h); REJECTION_NONE for OK.
-v1::Rejection RejectionOf(const absl::Status& status);
-
 // The learner's domain logic, independent of gRPC. It coordinates its parts:
 // the UnrollQueue (admission, exactly-once, back-pressure), its Algorithm
 // (a registered one, learner/algorithms/registry.h), the CheckpointStore and two CsvLogs
@@ -53,25 +46,23 @@ class Learner {
                                                          const LearnerConfig& config);
 
   // Validates `unroll`, featurises it on the calling thread and queues it for
-  // training; blocks while the queue is full (back-pressure). Returns OK when
-  // queued; otherwise one code per reason, each counted and mapped one to
-  // one onto v1::Rejection by the service:
-  //   INVALID_ARGUMENT naming the field (REJECTION_INVALID);
-  //   RESOURCE_EXHAUSTED: a batch with it would exceed max_batch_bytes
-  //     (REJECTION_OVER_CAP);
-  //   FAILED_PRECONDITION: more than max_policy_lag versions old, or
-  //     (synchronous) not of the current version or beyond its full batch
-  //     (REJECTION_STALE);
-  //   ABORTED: its version is newer than the learner's, a learner resumed from
-  //     an older checkpoint; refetch the policy (REJECTION_AHEAD);
-  //   ALREADY_EXISTS: its (actor_id, incarnation, sequence) is not newer than
-  //     that actor incarnation's last accepted unroll, a resend
-  //     (REJECTION_DUPLICATE);
-  //   OUT_OF_RANGE once the budget is done; UNAVAILABLE once the learner is
-  //     stopping for another reason (both end the stream);
-  //   CANCELLED if `cancelled` (polled every second while the queue is full)
-  //     returns true: the pusher went away, nothing was queued.
-  absl::Status Push(v1::Unroll unroll, const std::function<bool()>& cancelled = nullptr);
+  // training; blocks while the queue is full (back-pressure). Returns the
+  // outcome the ack carries: accepted (queued), or refused, each reason
+  // counted (imca_learner_unrolls_dropped_total):
+  //   REJECTION_INVALID: it fails validation (the error names the field);
+  //   REJECTION_OVER_CAP: a batch with it would exceed max_batch_bytes, or
+  //     its actor id would be one past max_actor_ids;
+  //   REJECTION_STALE: more than max_policy_lag versions old, or
+  //     (synchronous) not of the current version or beyond its full batch;
+  //   REJECTION_AHEAD: its version is newer than the learner's, a learner
+  //     resumed from an older checkpoint; refetch the policy;
+  //   REJECTION_DUPLICATE: its (actor_id, incarnation, sequence) is not newer
+  //     than that actor incarnation's last accepted unroll, a resend.
+  // Errors, which end the stream: OUT_OF_RANGE once the budget is done;
+  // UNAVAILABLE once the learner is stopping for another reason; CANCELLED
+  // if `cancelled` (polled every second while the queue is full) returns
+  // true: the pusher went away, nothing was queued.
+  absl::StatusOr<PushOutcome> Push(v1::Unroll unroll, const std::function<bool()>& cancelled = nullptr);
 
   // The newest published policy (never null after Create).
   std::shared_ptr<const v1::Policy> CurrentPolicy() const;
@@ -114,7 +105,7 @@ class Learner {
   void RegisterMetrics();
   // Push's checks before admission: the unroll's fields, and the memory a
   // batch with it needs (UnrollQueue::Options::validate).
-  absl::Status Validate(const v1::Unroll& unroll) const;
+  PushOutcome Validate(const v1::Unroll& unroll) const;
   // Adds an accepted unroll's episodes to the windows (UnrollQueue's on_accept).
   void CountEpisodes(const v1::Unroll& unroll);
   // The queue's next fresh unroll (counting the stale ones it drops);

@@ -38,11 +38,11 @@ LearnerServiceImpl::LearnerServiceImpl(Learner* learner, int max_streams)
       open_streams_(registry_.AddGauge(kOpenStreams)),
       waiting_polls_(registry_.AddGauge(kWaitingPolls)) {}
 
-v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version) {
+v1::PushUnrollsResponse AckOf(const PushOutcome& outcome, int64_t policy_version) {
   v1::PushUnrollsResponse ack;
-  ack.set_accepted(status.ok());
-  ack.set_rejection(RejectionOf(status));
-  if (!status.ok()) ack.set_error(std::string(status.message()));
+  ack.set_accepted(outcome.accepted());
+  ack.set_rejection(outcome.rejection);
+  ack.set_error(outcome.error);
   ack.set_policy_version(policy_version);
   return ack;
 }
@@ -69,13 +69,11 @@ grpc::Status LearnerServiceImpl::PushUnrollsInternal(grpc::ServerContext* contex
                    absl::CHexEscape(request.unroll().actor_id().substr(0, kMaxActorIdBytes)).c_str(),
                    PeerIdentity(*context).c_str());
     }
-    const absl::Status status =
+    const absl::StatusOr<PushOutcome> outcome =
         learner_->Push(std::move(*request.mutable_unroll()), [context] { return context->IsCancelled(); });
     // Ends the stream: the learner stops, or its budget is done, or the actor left.
-    if (absl::IsUnavailable(status) || absl::IsOutOfRange(status) || absl::IsCancelled(status)) {
-      return ToGrpcStatus(status);
-    }
-    if (!stream->Write(AckOf(status, learner_->CurrentPolicy()->version()))) break;
+    if (!outcome.ok()) return ToGrpcStatus(outcome.status());
+    if (!stream->Write(AckOf(*outcome, learner_->CurrentPolicy()->version()))) break;
   }
   return grpc::Status::OK;
 }

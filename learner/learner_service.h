@@ -8,10 +8,10 @@
 
 namespace imca::learner {
 
-// The ack of a push that Learner::Push answered with `status`: accepted, or
-// the typed rejection (one per refusal code, learner.h) the actor acts on,
-// with the message; and the learner's current version.
-v1::PushUnrollsResponse AckOf(const absl::Status& status, int64_t policy_version);
+// The ack of a push that Learner::Push answered with `outcome`: accepted, or
+// the typed rejection the actor acts on, with the message; and the
+// learner's current version.
+v1::PushUnrollsResponse AckOf(const PushOutcome& outcome, int64_t policy_version);
 
 // The gRPC face of a Learner (sync API: each PushUnrolls stream holds one
 // server thread, which is what gives back-pressure). At most `max_streams`

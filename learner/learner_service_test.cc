@@ -2,6 +2,7 @@
 // stream, no network: one ack per unroll, in order, typed by the learner's
 // answer; the stream ends when the client stops reading acks.
 #include "learner/learner_service.h"
+#include "learner/push_testing.h"
 
 #include <deque>
 #include <string>
@@ -110,7 +111,7 @@ TEST_F(LearnerServiceTest, EndsTheStreamOnceTheBudgetIsDone) {
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok()) << learner.status();
   LearnerServiceImpl service(learner->get());
-  ASSERT_TRUE((*learner)->Push(Unroll(0, 1)).ok());
+  ASSERT_TRUE(Accepted((*learner)->Push(Unroll(0, 1))));
   ASSERT_TRUE((*learner)->Run().ok());  // Trains the one unroll: done.
   ScriptedStream stream({Unroll(1, 2)}, /*fail_write=*/0);
   grpc::ServerContext context;

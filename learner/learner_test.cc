@@ -1,5 +1,6 @@
 #include "learner/algorithms/mappo/mappo.h"
 #include "learner/learner.h"
+#include "learner/push_testing.h"
 
 #include <cmath>
 #include <filesystem>
@@ -53,22 +54,22 @@ TEST_F(LearnerTest, RejectsBadUnrollsWithTheFieldName) {
   ASSERT_TRUE(learner.ok()) << learner.status();
   v1::Unroll bad = Unroll(0, 1);
   bad.mutable_intrinsic_rewards()->RemoveLast();
-  absl::Status status = (*learner)->Push(bad);
-  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(status.message(), HasSubstr("unroll.intrinsic_rewards"));
+  absl::StatusOr<PushOutcome> status = (*learner)->Push(bad);
+  EXPECT_EQ(RejectionOf(status), v1::REJECTION_INVALID);
+  EXPECT_THAT(Why(status), HasSubstr("unroll.intrinsic_rewards"));
   bad = Unroll(0, 1);
   bad.set_behaviour_log_probs(0, 0.5f);
-  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.behaviour_log_probs[0]"));
+  EXPECT_THAT(Why((*learner)->Push(bad)), HasSubstr("unroll.behaviour_log_probs[0]"));
   bad = Unroll(0, 1);
   bad.add_global_rewards(0.5f);  // Diagnostics are optional, but sized when present.
-  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.global_rewards"));
+  EXPECT_THAT(Why((*learner)->Push(bad)), HasSubstr("unroll.global_rewards"));
   bad = Unroll(0, 1);
   bad.mutable_contributions()->Resize(bad.intrinsic_rewards_size(), std::nanf(""));
-  EXPECT_THAT((*learner)->Push(bad).message(), HasSubstr("unroll.contributions"));
+  EXPECT_THAT(Why((*learner)->Push(bad)), HasSubstr("unroll.contributions"));
   bad = Unroll(7, 1);  // Ahead of the learner (it resumed from an older checkpoint): retryable.
   status = (*learner)->Push(bad);
-  EXPECT_EQ(status.code(), absl::StatusCode::kAborted);
-  EXPECT_THAT(status.message(), HasSubstr("ahead: unroll.policy_version"));
+  EXPECT_EQ(RejectionOf(status), v1::REJECTION_AHEAD);
+  EXPECT_THAT(Why(status), HasSubstr("ahead: unroll.policy_version"));
   EXPECT_EQ((*learner)->Status().unrolls_rejected(), 5);
   EXPECT_EQ((*learner)->Status().unrolls_received(), 0);
 }
@@ -90,11 +91,11 @@ TEST_F(LearnerTest, CapsTheBatchFeatureMemory) {
   config_.max_batch_bytes = per_step * (config_.batch_steps - 1 + 16 * 16);
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok()) << learner.status();
-  EXPECT_TRUE((*learner)->Push(Unroll(0, 1)).ok());
+  EXPECT_TRUE(Accepted((*learner)->Push(Unroll(0, 1))));
   v1::Unroll big = testing::RandomUnroll(*scenario_, 16, 32, 2);
-  const absl::Status status = (*learner)->Push(big);
-  EXPECT_EQ(status.code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(status.message(), HasSubstr("unroll.length * unroll.num_envs = 512 steps"));
+  const absl::StatusOr<PushOutcome> status = (*learner)->Push(big);
+  EXPECT_EQ(RejectionOf(status), v1::REJECTION_OVER_CAP);
+  EXPECT_THAT(Why(status), HasSubstr("unroll.length * unroll.num_envs = 512 steps"));
   EXPECT_EQ((*learner)->Status().unrolls_received(), 1);
   EXPECT_EQ((*learner)->Status().unrolls_rejected(), 1);
 }
@@ -107,15 +108,15 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   EXPECT_EQ(l->CurrentPolicy()->version(), 0);
   std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
   uint64_t seed = 1;
-  ASSERT_TRUE(l->Push(Unroll(0, seed++)).ok());
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, seed++))));
   while (l->Status().policy_version() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  ASSERT_TRUE(l->Push(Unroll(1, seed++)).ok());
+  ASSERT_TRUE(Accepted(l->Push(Unroll(1, seed++))));
   while (l->Status().policy_version() < 2) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   // Version 0 is now 2 behind with max_policy_lag 1: dropped and counted.
-  const absl::Status stale = l->Push(Unroll(0, seed++));
-  EXPECT_EQ(stale.code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(stale.message(), HasSubstr("stale"));
-  ASSERT_TRUE(l->Push(Unroll(2, seed++)).ok());
+  const absl::StatusOr<PushOutcome> stale = l->Push(Unroll(0, seed++));
+  EXPECT_EQ(RejectionOf(stale), v1::REJECTION_STALE);
+  EXPECT_THAT(Why(stale), HasSubstr("stale"));
+  ASSERT_TRUE(Accepted(l->Push(Unroll(2, seed++))));
   trainer.join();
   const v1::LearnerStatus status = l->Status();
   EXPECT_TRUE(status.done());
@@ -123,7 +124,7 @@ TEST_F(LearnerTest, TrainsPublishesDropsStaleAndCheckpoints) {
   EXPECT_EQ(status.env_steps(), 3 * 256);
   EXPECT_EQ(status.unrolls_dropped_stale(), 1);
   // After the budget, pushes learn that it is done (actors stop on this).
-  EXPECT_EQ(l->Push(Unroll(3, seed++)).code(), absl::StatusCode::kOutOfRange);
+  EXPECT_EQ(l->Push(Unroll(3, seed++)).status().code(), absl::StatusCode::kOutOfRange);
   EXPECT_EQ(l->CurrentPolicy()->tensors_size(), 6);
 
   // metrics.csv has a header and one row per iteration.
@@ -172,13 +173,13 @@ TEST_F(LearnerTest, PrometheusFamiliesCountRefusalsByReasonAndEachTrainedUnrolls
   }
   v1::Unroll bad = Unroll(0, 9);
   bad.set_num_agents(7);
-  EXPECT_TRUE(absl::IsInvalidArgument(l->Push(bad)));
-  EXPECT_EQ(l->Push(Unroll(5, 10)).code(), absl::StatusCode::kAborted);  // Ahead of version 0.
+  EXPECT_TRUE(RejectionOf(l->Push(bad)) == v1::REJECTION_INVALID);
+  EXPECT_EQ(RejectionOf(l->Push(Unroll(5, 10))), v1::REJECTION_AHEAD);  // Ahead of version 0.
   std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
-  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, 1))));
   while (l->Status().policy_version() < 1) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   // Queued at version 1, acted with 0: trained with a lag of 1.
-  ASSERT_TRUE(l->Push(Unroll(0, 2)).ok());
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, 2))));
   trainer.join();
   const std::string text = l->metrics().Text();
   EXPECT_EQ(SampleValue(text, R"(imca_learner_unrolls_dropped_total{reason="invalid"})"), 1) << text;
@@ -214,7 +215,7 @@ TEST_F(LearnerTest, MetricsOfAnotherVersionAreKeptApart) {
   ASSERT_TRUE(learner.ok()) << learner.status();
   Learner* l = learner->get();
   std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
-  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, 1))));
   trainer.join();
   std::ifstream old_file(run_dir_ + "/metrics.old.csv");
   std::string line;
@@ -242,9 +243,9 @@ TEST_F(LearnerTest, EdtiNeedsInfluencesAndTrainsItsInteractionHead) {
   ASSERT_TRUE(learner.ok()) << learner.status();
   Learner* l = learner->get();
   const int n = scenario_->num_agents();
-  absl::Status missing = l->Push(Unroll(0, 1));
-  EXPECT_EQ(missing.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(missing.message(), HasSubstr("unroll.influences is empty"));
+  const absl::StatusOr<PushOutcome> missing = l->Push(Unroll(0, 1));
+  EXPECT_EQ(RejectionOf(missing), v1::REJECTION_INVALID);
+  EXPECT_THAT(Why(missing), HasSubstr("unroll.influences is empty"));
   auto with_influences = [&](int64_t version, uint64_t seed) {
     v1::Unroll u = Unroll(version, seed);
     const int64_t size = int64_t{u.length()} * u.num_envs() * n * n;
@@ -253,9 +254,9 @@ TEST_F(LearnerTest, EdtiNeedsInfluencesAndTrainsItsInteractionHead) {
   };
   v1::Unroll short_one = with_influences(0, 2);
   short_one.mutable_influences()->RemoveLast();
-  EXPECT_THAT(l->Push(short_one).message(), HasSubstr("unroll.influences"));
-  ASSERT_TRUE(l->Push(with_influences(0, 3)).ok());
-  ASSERT_TRUE(l->Push(with_influences(0, 4)).ok());  // Lag 1 by the time it trains: allowed.
+  EXPECT_THAT(Why(l->Push(short_one)), HasSubstr("unroll.influences"));
+  ASSERT_TRUE(Accepted(l->Push(with_influences(0, 3))));
+  ASSERT_TRUE(Accepted(l->Push(with_influences(0, 4))));  // Lag 1 by the time it trains: allowed.
   ASSERT_TRUE(l->Run().ok());
   EXPECT_EQ(l->Status().env_steps(), 2 * 256);
   // The interaction rewards reach metrics.csv: the partner-reward term alone
@@ -279,17 +280,17 @@ TEST_F(LearnerTest, SynchronousTrainsOnlyOnThePolicyItStartsFrom) {
   Learner* l = learner->get();
   int64_t woke_with = -1;
   std::thread waiter([&] { woke_with = l->WaitForPolicy(1, absl::Seconds(60))->version(); });
-  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());  // 256 steps: version 0's batch is full.
-  absl::Status surplus = l->Push(Unroll(0, 2));
-  EXPECT_EQ(surplus.code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(surplus.message(), HasSubstr("stale: the batch of policy version 0 is full"));
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, 1))));  // 256 steps: version 0's batch is full.
+  const absl::StatusOr<PushOutcome> surplus = l->Push(Unroll(0, 2));
+  EXPECT_EQ(RejectionOf(surplus), v1::REJECTION_STALE);
+  EXPECT_THAT(Why(surplus), HasSubstr("stale: the batch of policy version 0 is full"));
   std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
   waiter.join();  // Woken by the publication of version 1.
   EXPECT_EQ(woke_with, 1);
   // Version 0 is only one behind, but a synchronous learner takes no lag.
-  const absl::Status old = l->Push(Unroll(0, 3));
-  EXPECT_THAT(old.message(), HasSubstr("stale: policy version 0 is not the synchronous learner's 1"));
-  ASSERT_TRUE(l->Push(Unroll(1, 4)).ok());
+  const absl::StatusOr<PushOutcome> old = l->Push(Unroll(0, 3));
+  EXPECT_THAT(Why(old), HasSubstr("stale: policy version 0 is not the synchronous learner's 1"));
+  ASSERT_TRUE(Accepted(l->Push(Unroll(1, 4))));
   trainer.join();
   EXPECT_EQ(l->Status().env_steps(), 2 * 256);
   EXPECT_EQ(l->Status().unrolls_dropped_stale(), 2);
@@ -320,7 +321,7 @@ TEST_F(LearnerTest, CriticInputsAndTimeLimitOptionsTrain) {
   EXPECT_EQ(MappoCriticDim(*scenario_, config_), 2 * featurizer.obs_dim() + 2);
   Learner* l = learner->get();
   std::thread trainer([l] { EXPECT_TRUE(l->Run().ok()); });
-  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, 1))));
   trainer.join();
   EXPECT_EQ(l->Status().policy_version(), 1);
   CriticInput input = CriticInput::kState;
@@ -344,13 +345,13 @@ TEST_F(LearnerTest, ResentUnrollsAreDroppedAcrossARestart) {
     u.set_sequence(sequence);
     return u;
   };
-  ASSERT_TRUE(l->Push(tagged(5, 1, 1)).ok());
+  ASSERT_TRUE(Accepted(l->Push(tagged(5, 1, 1))));
   // The same unroll again (its ack was lost): recognised, not queued.
-  const absl::Status again = l->Push(tagged(5, 1, 1));
-  EXPECT_EQ(again.code(), absl::StatusCode::kAlreadyExists);
-  EXPECT_THAT(again.message(), HasSubstr("duplicate: unroll 1 of actor-1"));
+  const absl::StatusOr<PushOutcome> again = l->Push(tagged(5, 1, 1));
+  EXPECT_EQ(RejectionOf(again), v1::REJECTION_DUPLICATE);
+  EXPECT_THAT(Why(again), HasSubstr("duplicate: unroll 1 of actor-1"));
   // A restarted actor (new incarnation) numbers from 1 again: accepted.
-  ASSERT_TRUE(l->Push(tagged(6, 1, 2)).ok());
+  ASSERT_TRUE(Accepted(l->Push(tagged(6, 1, 2))));
   v1::LearnerStatus status = l->Status();
   EXPECT_EQ(status.unrolls_received(), 2);
   EXPECT_EQ(status.unrolls_duplicate(), 1);
@@ -364,9 +365,9 @@ TEST_F(LearnerTest, ResentUnrollsAreDroppedAcrossARestart) {
   ASSERT_TRUE((*restarted)->Restore(run_dir_ + "/checkpoints").ok());
   v1::Unroll resent = tagged(6, 1, 2);
   resent.set_policy_version(2);
-  EXPECT_EQ((*restarted)->Push(resent).code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_EQ(RejectionOf((*restarted)->Push(resent)), v1::REJECTION_DUPLICATE);
   resent.set_sequence(2);
-  EXPECT_TRUE((*restarted)->Push(resent).ok());
+  EXPECT_TRUE(Accepted((*restarted)->Push(resent)));
   EXPECT_EQ((*restarted)->Status().env_steps(), 2 * 256);
 }
 
@@ -381,17 +382,17 @@ TEST_F(LearnerTest, PoisonUnrollsAreRefusedAndExtremeOnesTrain) {
   for (const float poison : {-1e38f, -90.0f}) {
     v1::Unroll bad = Unroll(0, 1);
     bad.set_behaviour_log_probs(0, poison);
-    const absl::Status status = l->Push(bad);
-    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << poison;
-    EXPECT_THAT(status.message(), HasSubstr("unroll.behaviour_log_probs[0]")) << poison;
-    EXPECT_THAT(status.message(), HasSubstr("is not the log of action_probs[0]")) << poison;
+    const absl::StatusOr<PushOutcome> status = l->Push(bad);
+    EXPECT_EQ(RejectionOf(status), v1::REJECTION_INVALID) << poison;
+    EXPECT_THAT(Why(status), HasSubstr("unroll.behaviour_log_probs[0]")) << poison;
+    EXPECT_THAT(Why(status), HasSubstr("is not the log of action_probs[0]")) << poison;
   }
   v1::Unroll huge = Unroll(0, 1);
   huge.set_rewards(3, 1e30f);
-  EXPECT_THAT(l->Push(huge).message(), HasSubstr("unroll.rewards[3]: 1e+30 is outside [-1e6, 1e6]"));
+  EXPECT_THAT(Why(l->Push(huge)), HasSubstr("unroll.rewards[3]: 1e+30 is outside [-1e6, 1e6]"));
   huge = Unroll(0, 1);
   huge.set_intrinsic_rewards(0, -2e6f);
-  EXPECT_THAT(l->Push(huge).message(), HasSubstr("unroll.intrinsic_rewards[0]"));
+  EXPECT_THAT(Why(l->Push(huge)), HasSubstr("unroll.intrinsic_rewards[0]"));
   // Consistent but extreme: the recorded action had probability 1e-12, the
   // floor, so the learner's ratio is ~1e11 before its bound. Trains.
   v1::Unroll extreme = Unroll(0, 2);
@@ -404,7 +405,7 @@ TEST_F(LearnerTest, PoisonUnrollsAreRefusedAndExtremeOnesTrain) {
     extreme.set_behaviour_log_probs(row, std::log(1e-12f));
     extreme.set_rewards(row, row % 2 == 0 ? 1e5f : -1e5f);
   }
-  ASSERT_TRUE(l->Push(extreme).ok());
+  ASSERT_TRUE(Accepted(l->Push(extreme)));
   ASSERT_TRUE(l->Run().ok());
   const v1::LearnerStatus status = l->Status();
   EXPECT_EQ(status.policy_version(), 1);
@@ -423,7 +424,7 @@ TEST_F(LearnerTest, CheckpointsByTimeAndFallsBackPastADamagedOne) {
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok()) << learner.status();
   Learner* l = learner->get();
-  for (uint64_t seed = 1; seed <= 3; ++seed) ASSERT_TRUE(l->Push(Unroll(0, seed)).ok());
+  for (uint64_t seed = 1; seed <= 3; ++seed) ASSERT_TRUE(Accepted(l->Push(Unroll(0, seed))));
   ASSERT_TRUE(l->Run().ok());
   const std::string dir = run_dir_ + "/checkpoints";
   for (const char* stem : {"/ckpt-00000001", "/ckpt-00000002", "/ckpt-00000003"}) {
@@ -446,9 +447,9 @@ TEST_F(LearnerTest, StopWakesBlockedPushers) {
   auto learner = Learner::Create(scenario_.get(), config_);
   ASSERT_TRUE(learner.ok());
   Learner* l = learner->get();
-  ASSERT_TRUE(l->Push(Unroll(0, 1)).ok());  // Fills the queue; nobody trains.
+  ASSERT_TRUE(Accepted(l->Push(Unroll(0, 1))));  // Fills the queue; nobody trains.
   EXPECT_EQ(l->Status().pushers_waiting(), 0);
-  std::thread pusher([l, this] { EXPECT_EQ(l->Push(Unroll(0, 2)).code(), absl::StatusCode::kUnavailable); });
+  std::thread pusher([l, this] { EXPECT_EQ(l->Push(Unroll(0, 2)).status().code(), absl::StatusCode::kUnavailable); });
   // Stop only once the pusher is blocked on the full queue, so that the test
   // is of the wake-up and not of a Push that saw the stop first.
   while (l->Status().pushers_waiting() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));

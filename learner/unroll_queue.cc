@@ -11,8 +11,8 @@
 namespace imca::learner {
 UnrollQueue::UnrollQueue(Options options) : options_(std::move(options)) {}
 
-absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
-  if (absl::Status valid = options_.validate(unroll); !valid.ok()) {
+absl::StatusOr<PushOutcome> UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& cancelled) {
+  if (PushOutcome valid = options_.validate(unroll); !valid.accepted()) {
     absl::MutexLock lock(&mu_);
     ++stats_.rejected;
     return valid;
@@ -20,7 +20,8 @@ absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& c
   int64_t admitted_version;
   {
     absl::MutexLock lock(&mu_);
-    IMCA_RETURN_IF_ERROR(Admit(unroll));
+    IMCA_ASSIGN_OR_RETURN(PushOutcome admitted, Admit(unroll));
+    if (!admitted.accepted()) return admitted;
     admitted_version = version_;
   }
   // Featurised here, on the pushing (gRPC) thread, so that the training
@@ -56,11 +57,9 @@ absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& c
   if (closed_) return ClosedStatus();
   // Both checked again: other pushes may have been queued during the wait
   // (a resend of this unroll, or new ids that filled the id cap).
-  if (absl::Status checked = CheckNotDuplicate(queued.unroll); !checked.ok()) {
-    withdraw();
-    return checked;
-  }
-  if (absl::Status checked = CheckActorIdRoom(queued.unroll); !checked.ok()) {
+  PushOutcome checked = CheckNotDuplicate(queued.unroll);
+  if (checked.accepted()) checked = CheckActorIdRoom(queued.unroll);
+  if (!checked.accepted()) {
     withdraw();
     return checked;
   }
@@ -68,7 +67,7 @@ absl::Status UnrollQueue::Push(v1::Unroll unroll, const std::function<bool()>& c
   if (options_.on_accept) options_.on_accept(queued.unroll);
   stats_.queued_steps += UnrollSteps(queued.unroll);
   queue_.push_back(std::move(queued));
-  return absl::OkStatus();
+  return PushOutcome();
 }
 
 void UnrollQueue::Accept(const v1::Unroll& u) {
@@ -87,62 +86,62 @@ void UnrollQueue::Accept(const v1::Unroll& u) {
   it->second = Accepted{u.incarnation(), u.sequence()};
 }
 
-absl::Status UnrollQueue::CheckActorIdRoom(const v1::Unroll& unroll) {
+PushOutcome UnrollQueue::CheckActorIdRoom(const v1::Unroll& unroll) {
   if (actors_.size() >= static_cast<size_t>(options_.max_actor_ids) && actors_.count(unroll.actor_id()) == 0) {
     // Each id is remembered for exactly-once delivery and reported in the
     // status: a client inventing ids must not grow them without bound.
     ++stats_.rejected;
-    return absl::ResourceExhaustedError(absl::StrCat("the learner tracks at most ", options_.max_actor_ids,
-                                                     " actor ids; unroll.actor_id is one more"));
+    return Refused(v1::REJECTION_OVER_CAP, absl::StrCat("the learner tracks at most ", options_.max_actor_ids,
+                                                        " actor ids; unroll.actor_id is one more"));
   }
-  return absl::OkStatus();
+  return PushOutcome();
 }
 
-absl::Status UnrollQueue::CheckNotDuplicate(const v1::Unroll& unroll) {
-  if (unroll.incarnation() == 0) return absl::OkStatus();
+PushOutcome UnrollQueue::CheckNotDuplicate(const v1::Unroll& unroll) {
+  if (unroll.incarnation() == 0) return PushOutcome();
   auto it = accepted_.find(unroll.actor_id());
   if (it != accepted_.end() && it->second.incarnation == unroll.incarnation() &&
       unroll.sequence() <= it->second.sequence) {
     ++stats_.duplicate;
-    return absl::AlreadyExistsError(absl::StrCat("duplicate: unroll ", unroll.sequence(), " of ",
-                                                 unroll.actor_id(), " was accepted before"));
+    return Refused(v1::REJECTION_DUPLICATE, absl::StrCat("duplicate: unroll ", unroll.sequence(), " of ",
+                                                         unroll.actor_id(), " was accepted before"));
   }
-  return absl::OkStatus();
+  return PushOutcome();
 }
 
 bool UnrollQueue::TooOld(const v1::Unroll& unroll) const {
   return options_.max_policy_lag.has_value() && version_ - unroll.policy_version() > *options_.max_policy_lag;
 }
 
-absl::Status UnrollQueue::Admit(const v1::Unroll& unroll) {
+absl::StatusOr<PushOutcome> UnrollQueue::Admit(const v1::Unroll& unroll) {
   if (closed_) return ClosedStatus();
-  IMCA_RETURN_IF_ERROR(CheckNotDuplicate(unroll));
-  IMCA_RETURN_IF_ERROR(CheckActorIdRoom(unroll));
+  if (PushOutcome checked = CheckNotDuplicate(unroll); !checked.accepted()) return checked;
+  if (PushOutcome checked = CheckActorIdRoom(unroll); !checked.accepted()) return checked;
   if (unroll.policy_version() > version_) {
     // A learner restarted from an older checkpoint: the actor must refetch.
     ++stats_.rejected;
-    return absl::AbortedError(absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
-                                           " is newer than the learner's ", version_));
+    return Refused(v1::REJECTION_AHEAD, absl::StrCat("ahead: unroll.policy_version ", unroll.policy_version(),
+                                                     " is newer than the learner's ", version_));
   }
   if (options_.synchronous) {
     if (unroll.policy_version() != version_) {
       ++stats_.stale;
-      return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
-                                                        " is not the synchronous learner's ", version_));
+      return Refused(v1::REJECTION_STALE, absl::StrCat("stale: policy version ", unroll.policy_version(),
+                                                       " is not the synchronous learner's ", version_));
     }
     if (version_steps_ >= options_.batch_steps) {
       ++stats_.stale;
-      return absl::FailedPreconditionError(absl::StrCat("stale: the batch of policy version ", version_,
-                                                        " is full (synchronous learner)"));
+      return Refused(v1::REJECTION_STALE, absl::StrCat("stale: the batch of policy version ", version_,
+                                                       " is full (synchronous learner)"));
     }
     version_steps_ += UnrollSteps(unroll);
   } else if (TooOld(unroll)) {
     ++stats_.stale;
-    return absl::FailedPreconditionError(absl::StrCat("stale: policy version ", unroll.policy_version(),
-                                                      " is more than ", *options_.max_policy_lag, " behind ",
-                                                      version_));
+    return Refused(v1::REJECTION_STALE, absl::StrCat("stale: policy version ", unroll.policy_version(),
+                                                     " is more than ", *options_.max_policy_lag, " behind ",
+                                                     version_));
   }
-  return absl::OkStatus();
+  return PushOutcome();
 }
 
 absl::Status UnrollQueue::ClosedStatus() const {

@@ -13,10 +13,22 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/synchronization/mutex.h"
+#include "absl/status/statusor.h"
+#include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 #include "learner/algorithms/interface.h"
 
 namespace imca::learner {
+
+// What became of a pushed unroll: accepted (queued), or refused for a reason
+// the sender acts on (the ack's v1::Rejection) with a message naming what is
+// wrong (an invalid unroll's field and element).
+struct PushOutcome {
+  v1::Rejection rejection = v1::REJECTION_NONE;  // REJECTION_NONE exactly when accepted.
+  std::string error;                             // Empty when accepted.
+  bool accepted() const { return rejection == v1::REJECTION_NONE; }
+};
+inline PushOutcome Refused(v1::Rejection rejection, std::string error) { return {rejection, std::move(error)}; }
 
 // The learner's admission of unrolls, as Reverb's RateLimiter and Table
 // split a replay server's: which unroll is taken (validity, policy version,
@@ -37,9 +49,10 @@ class UnrollQueue {
     // nullopt: any (an off-policy algorithm).
     std::optional<int> max_policy_lag = 0;
     int max_actor_ids = 1024;
-    // Validates an unroll before anything else (INVALID_ARGUMENT naming the
-    // field, RESOURCE_EXHAUSTED over a cap); any thread.
-    std::function<absl::Status(const v1::Unroll&)> validate;
+    // Validates an unroll before anything else: accepted if it is valid,
+    // else refused (REJECTION_INVALID naming the field, REJECTION_OVER_CAP
+    // over a cap); any thread.
+    std::function<PushOutcome(const v1::Unroll&)> validate;
     // Turns an admitted unroll into the training thread's inputs, on the
     // pushing thread and outside the lock; any thread.
     std::function<FeaturisedUnroll(v1::Unroll)> featurise;
@@ -70,13 +83,12 @@ class UnrollQueue {
   explicit UnrollQueue(Options options);
 
   // Validates, admits, featurises (outside the lock) and queues `unroll`;
-  // blocks while the queue is full. Returns OK when queued; otherwise one
-  // code per reason (Learner::Push lists them: INVALID_ARGUMENT,
-  // RESOURCE_EXHAUSTED, FAILED_PRECONDITION stale, ABORTED ahead,
-  // ALREADY_EXISTS duplicate; OUT_OF_RANGE or UNAVAILABLE once closed;
+  // blocks while the queue is full. Returns whether it was accepted (queued)
+  // or refused and why (Learner::Push lists the reasons), each counted in
+  // Stats. Errors, nothing queued: OUT_OF_RANGE or UNAVAILABLE once closed;
   // CANCELLED if `cancelled`, polled every second while the queue is full,
-  // returns true), each counted in Stats, nothing queued.
-  absl::Status Push(v1::Unroll unroll, const std::function<bool()>& cancelled = nullptr);
+  // returns true.
+  absl::StatusOr<PushOutcome> Push(v1::Unroll unroll, const std::function<bool()>& cancelled = nullptr);
 
   // Blocks for the next queued unroll that is still fresh enough, dropping
   // (and counting, in `*dropped_stale` too) those that aged past
@@ -102,14 +114,16 @@ class UnrollQueue {
   std::vector<std::string> ActorIds() const;
 
  private:
-  // Push's checks of the version, staleness, duplicates and ids.
-  absl::Status Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // ALREADY_EXISTS (counted) if `unroll` is not newer than its actor
+  // Push's checks of the version, staleness, duplicates and ids: accepted
+  // (and, synchronous, its steps counted towards the version's batch) or
+  // refused (counted); the closed status once closed.
+  absl::StatusOr<PushOutcome> Admit(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // REJECTION_DUPLICATE (counted) if `unroll` is not newer than its actor
   // incarnation's last accepted one.
-  absl::Status CheckNotDuplicate(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
-  // RESOURCE_EXHAUSTED (counted) if the unroll's actor id would be one past
+  PushOutcome CheckNotDuplicate(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // REJECTION_OVER_CAP (counted) if the unroll's actor id would be one past
   // max_actor_ids.
-  absl::Status CheckActorIdRoom(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  PushOutcome CheckActorIdRoom(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Records an accepted unroll's actor, incarnation and sequence.
   void Accept(const v1::Unroll& unroll) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   absl::Status ClosedStatus() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);

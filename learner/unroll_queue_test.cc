@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "gtest/gtest.h"
+#include "learner/push_testing.h"
 
 namespace imca::learner {
 namespace {
@@ -31,7 +32,7 @@ class UnrollQueueTest : public ::testing::Test {
     o.max_policy_lag = 1;
     o.max_actor_ids = 3;
     o.validate = [](const v1::Unroll& u) {
-      return u.length() > 0 ? absl::OkStatus() : absl::InvalidArgumentError("unroll.length must be > 0");
+      return u.length() > 0 ? PushOutcome() : Refused(v1::REJECTION_INVALID, "unroll.length must be > 0");
     };
     o.featurise = [](v1::Unroll u) { return FeaturisedUnroll{std::move(u), {1.0f}, {}, 0}; };
     o.on_accept = [this](const v1::Unroll&) { ++accepted_; };
@@ -47,8 +48,8 @@ class UnrollQueueTest : public ::testing::Test {
 
 TEST_F(UnrollQueueTest, QueuesValidUnrollsInOrderWithTheirFeatures) {
   UnrollQueue q(Options());
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
-  ASSERT_TRUE(q.Push(Unroll(0, "b", 1, 1)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "b", 1, 1))));
   const UnrollQueue::Stats s = q.stats();
   EXPECT_EQ(s.received, 2);
   EXPECT_EQ(s.depth, 2);
@@ -68,17 +69,17 @@ TEST_F(UnrollQueueTest, RefusesEachReasonWithItsCodeAndCountsIt) {
   UnrollQueue q(Options());
   v1::Unroll invalid = Unroll(0);
   invalid.set_length(0);
-  EXPECT_EQ(q.Push(invalid).code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(q.Push(Unroll(1)).code(), absl::StatusCode::kAborted);  // Ahead of version 0.
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 5)).ok());
-  EXPECT_EQ(q.Push(Unroll(0, "a", 1, 5)).code(), absl::StatusCode::kAlreadyExists);
-  EXPECT_EQ(q.Push(Unroll(0, "a", 1, 4)).code(), absl::StatusCode::kAlreadyExists);
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 2, 1)).ok());  // A restarted actor starts its sequence again.
-  ASSERT_TRUE(q.Push(Unroll(0, "b")).ok());
-  ASSERT_TRUE(q.Push(Unroll(0, "c")).ok());
-  EXPECT_EQ(q.Push(Unroll(0, "d")).code(), absl::StatusCode::kResourceExhausted);  // A fourth id.
+  EXPECT_EQ(RejectionOf(q.Push(invalid)), v1::REJECTION_INVALID);
+  EXPECT_EQ(RejectionOf(q.Push(Unroll(1))), v1::REJECTION_AHEAD);  // Ahead of version 0.
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 5))));
+  EXPECT_EQ(RejectionOf(q.Push(Unroll(0, "a", 1, 5))), v1::REJECTION_DUPLICATE);
+  EXPECT_EQ(RejectionOf(q.Push(Unroll(0, "a", 1, 4))), v1::REJECTION_DUPLICATE);
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 2, 1))));  // A restarted actor starts its sequence again.
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "b"))));
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "c"))));
+  EXPECT_EQ(RejectionOf(q.Push(Unroll(0, "d"))), v1::REJECTION_OVER_CAP);  // A fourth id.
   q.NewVersion(2);
-  EXPECT_EQ(q.Push(Unroll(0, "a", 2, 2)).code(), absl::StatusCode::kFailedPrecondition);  // 2 behind, lag 1.
+  EXPECT_EQ(RejectionOf(q.Push(Unroll(0, "a", 2, 2))), v1::REJECTION_STALE);  // 2 behind, lag 1.
   const UnrollQueue::Stats s = q.stats();
   EXPECT_EQ(s.rejected, 3);
   EXPECT_EQ(s.duplicate, 2);
@@ -91,10 +92,10 @@ TEST_F(UnrollQueueTest, RefusesEachReasonWithItsCodeAndCountsIt) {
 
 TEST_F(UnrollQueueTest, NextDropsWhatAgedPastTheLagWhileQueued) {
   UnrollQueue q(Options());
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 2)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 2))));
   q.NewVersion(1);
-  ASSERT_TRUE(q.Push(Unroll(1, "a", 1, 3)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(1, "a", 1, 3))));
   q.NewVersion(2);
   int dropped = 0;
   const std::optional<FeaturisedUnroll> next = q.Next(&dropped);
@@ -109,7 +110,7 @@ TEST_F(UnrollQueueTest, AnOffPolicyQueueTakesAnyAge) {
   o.max_policy_lag = std::nullopt;
   UnrollQueue q(std::move(o));
   q.NewVersion(100);
-  ASSERT_TRUE(q.Push(Unroll(0)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0))));
   int dropped = 0;
   EXPECT_TRUE(q.Next(&dropped).has_value());
 }
@@ -119,24 +120,24 @@ TEST_F(UnrollQueueTest, ASynchronousQueueTakesOneBatchOfTheCurrentVersion) {
   o.synchronous = true;
   o.batch_steps = 16;
   UnrollQueue q(std::move(o));
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 2)).ok());
-  const absl::Status full = q.Push(Unroll(0, "a", 1, 3));
-  EXPECT_EQ(full.code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_NE(full.message().find("is full"), std::string::npos) << full;
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 2))));
+  const absl::StatusOr<PushOutcome> full = q.Push(Unroll(0, "a", 1, 3));
+  EXPECT_EQ(RejectionOf(full), v1::REJECTION_STALE);
+  EXPECT_NE(Why(full).find("is full"), std::string::npos) << Why(full);
   q.NewVersion(1);
-  EXPECT_EQ(q.Push(Unroll(0, "a", 1, 3)).code(), absl::StatusCode::kFailedPrecondition);  // Not the current one.
-  EXPECT_TRUE(q.Push(Unroll(1, "a", 1, 3)).ok());
+  EXPECT_EQ(RejectionOf(q.Push(Unroll(0, "a", 1, 3))), v1::REJECTION_STALE);  // Not the current one.
+  EXPECT_TRUE(Accepted(q.Push(Unroll(1, "a", 1, 3))));
 }
 
 TEST_F(UnrollQueueTest, AFullQueueBlocksUntilTheTrainerTakes) {
   UnrollQueue::Options o = Options();
   o.capacity = 1;
   UnrollQueue q(std::move(o));
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
   std::atomic<bool> pushed{false};
   std::thread pusher([&] {
-    EXPECT_TRUE(q.Push(Unroll(0, "a", 1, 2)).ok());
+    EXPECT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 2))));
     pushed = true;
   });
   WaitForBlockedPusher(q);
@@ -154,10 +155,10 @@ TEST_F(UnrollQueueTest, APusherThatWentAwayQueuesNothingAndItsStepsAreFreed) {
   o.synchronous = true;
   o.batch_steps = 16;
   UnrollQueue q(std::move(o));
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
   std::atomic<bool> gone{false};
   std::thread pusher([&] {
-    EXPECT_EQ(q.Push(Unroll(0, "a", 1, 2), [&] { return gone.load(); }).code(), absl::StatusCode::kCancelled);
+    EXPECT_EQ(q.Push(Unroll(0, "a", 1, 2), [&] { return gone.load(); }).status().code(), absl::StatusCode::kCancelled);
   });
   WaitForBlockedPusher(q);
   gone = true;
@@ -165,7 +166,7 @@ TEST_F(UnrollQueueTest, APusherThatWentAwayQueuesNothingAndItsStepsAreFreed) {
   int dropped = 0;
   ASSERT_TRUE(q.Next(&dropped).has_value());
   // Not a duplicate, and its steps no longer fill the version's batch.
-  EXPECT_TRUE(q.Push(Unroll(0, "a", 1, 2)).ok());
+  EXPECT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 2))));
   EXPECT_EQ(q.stats().received, 2);
 }
 
@@ -173,27 +174,27 @@ TEST_F(UnrollQueueTest, CloseWakesWaitersWithTheReason) {
   UnrollQueue::Options o = Options();
   o.capacity = 1;
   UnrollQueue q(std::move(o));
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
-  std::thread pusher([&] { EXPECT_EQ(q.Push(Unroll(0, "a", 1, 2)).code(), absl::StatusCode::kUnavailable); });
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
+  std::thread pusher([&] { EXPECT_EQ(q.Push(Unroll(0, "a", 1, 2)).status().code(), absl::StatusCode::kUnavailable); });
   WaitForBlockedPusher(q);
   q.Close(/*budget_done=*/false);
   pusher.join();
   int dropped = 0;
   EXPECT_FALSE(q.Next(&dropped).has_value());
   q.Close(/*budget_done=*/true);
-  EXPECT_EQ(q.Push(Unroll(0, "b")).code(), absl::StatusCode::kOutOfRange);
+  EXPECT_EQ(q.Push(Unroll(0, "b")).status().code(), absl::StatusCode::kOutOfRange);
 }
 
 TEST_F(UnrollQueueTest, ARestoredQueueKnowsWhatWasTrained) {
   UnrollQueue q(Options());
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 1)).ok());
-  ASSERT_TRUE(q.Push(Unroll(0, "a", 1, 2)).ok());
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 1))));
+  ASSERT_TRUE(Accepted(q.Push(Unroll(0, "a", 1, 2))));
   q.MarkTrained({Unroll(0, "a", 1, 1)});
   UnrollQueue restored(Options());
   restored.Restore(3, q.Trained());
-  EXPECT_EQ(restored.Push(Unroll(3, "a", 1, 1)).code(), absl::StatusCode::kAlreadyExists);
-  EXPECT_TRUE(restored.Push(Unroll(3, "a", 1, 2)).ok());  // Only queued before: lost, taken again.
-  EXPECT_EQ(restored.Push(Unroll(4, "a", 1, 3)).code(), absl::StatusCode::kAborted);
+  EXPECT_EQ(RejectionOf(restored.Push(Unroll(3, "a", 1, 1))), v1::REJECTION_DUPLICATE);
+  EXPECT_TRUE(Accepted(restored.Push(Unroll(3, "a", 1, 2))));  // Only queued before: lost, taken again.
+  EXPECT_EQ(RejectionOf(restored.Push(Unroll(4, "a", 1, 3))), v1::REJECTION_AHEAD);
 }
 
 }  // namespace

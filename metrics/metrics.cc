@@ -221,6 +221,15 @@ Counter& Registry::AddCounter(const Family& family, const Labels& labels) {
   return AddValue(family, labels, Type::kCounter, &Series::counter);
 }
 
+std::vector<Counter*> Registry::AddCounterPerValue(const Family& family, const std::string& label,
+                                                   const std::vector<std::string>& values) {
+  std::vector<Counter*> counters(values.size(), nullptr);
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (!values[i].empty()) counters[i] = &AddCounter(family, {{label, values[i]}});
+  }
+  return counters;
+}
+
 Gauge& Registry::AddGauge(const Family& family, const Labels& labels) {
   return AddValue(family, labels, Type::kGauge, &Series::gauge);
 }

@@ -118,6 +118,11 @@ class Registry {
   Registry& operator=(const Registry&) = delete;
 
   Counter& AddCounter(const Family& family, const Labels& labels = {});
+  // One counter of `family` per value of `label`, all registered (at 0) now,
+  // in the order of `values`; an empty value has none (null), so an enum's
+  // names index its counters.
+  std::vector<Counter*> AddCounterPerValue(const Family& family, const std::string& label,
+                                           const std::vector<std::string>& values);
   Gauge& AddGauge(const Family& family, const Labels& labels = {});
   Histogram& AddHistogram(const Family& family, const Labels& labels = {});
   // A counter or gauge series whose value `read` returns at each scrape

@@ -1,17 +1,18 @@
 #include "nn/blas_kernels.h"
 
 #include <dlfcn.h>
-#include <unistd.h>
 
 #include <cctype>
-#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <string>
+#include <utility>
+#include <vector>
 
 // ATen's version header alone: torch/torch.h costs ~15 s to compile.
 #include <ATen/Version.h>
+
+#include "base/load_time_env.h"
 
 namespace imca::nn {
 namespace {
@@ -53,17 +54,15 @@ std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFea
 }
 
 void UseTheCpusBlasKernels(char** argv) {
-  const char* set = std::getenv("OPENBLAS_CORETYPE");
   const char* core = OpenBlasCore();
-  const std::string type(CoreTypeToForce(set, core, ThisCpu()));
-  if (type.empty()) return;
-  std::fprintf(stderr, "%s: OpenBLAS chose its %s kernels on this CPU; restarting with OPENBLAS_CORETYPE=%s\n",
-               argv[0], core, type.c_str());
-  if (setenv("OPENBLAS_CORETYPE", type.c_str(), 1) != 0) return;
-  execv("/proc/self/exe", argv);
-  std::fprintf(stderr, "%s: restarting failed (%s); going on with OpenBLAS's %s kernels\n", argv[0],
-               std::strerror(errno), core);
-  unsetenv("OPENBLAS_CORETYPE");
+  const std::string type(CoreTypeToForce(std::getenv("OPENBLAS_CORETYPE"), core, ThisCpu()));
+  std::vector<std::pair<std::string, std::string>> vars = {{"OMP_WAIT_POLICY", kOmpWaitPolicy}};
+  if (!type.empty()) {
+    std::fprintf(stderr, "%s: OpenBLAS chose its %s kernels on this CPU; restarting with OPENBLAS_CORETYPE=%s\n",
+                 argv[0], core, type.c_str());
+    vars.emplace_back("OPENBLAS_CORETYPE", type);
+  }
+  ReexecWith(argv, vars);
 }
 
 const std::string& KernelsInUse() {

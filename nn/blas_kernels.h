@@ -28,15 +28,15 @@ std::string_view BetterCoreType(std::string_view core, const CpuFeatures& cpu);
 // what OpenBLAS chose (null: no OpenBLAS loaded). Pure.
 std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFeatures& cpu);
 
-// Call first in main() of a LibTorch binary, with main's argv. If the
+// Call first in main() of a LibTorch binary, with main's argv: our
+// load-time environment (base/load_time_env.h: OMP_WAIT_POLICY), and if the
 // process's OpenBLAS chose older kernels than this CPU runs
-// (BetterCoreType) and OPENBLAS_CORETYPE is not set, says so in one line on
-// stderr and re-executes the binary (same pid, arguments and environment)
-// with OPENBLAS_CORETYPE set; OpenBLAS reads it only as it loads. Returns
-// otherwise: OpenBLAS not loaded, the kernels fit, the variable already set
-// (by the user or the re-execution), or the re-execution failed (one line on
-// stderr; the process goes on with the kernels it has). Not thread-safe:
-// call before any thread of the program's own starts.
+// (BetterCoreType) and OPENBLAS_CORETYPE is not set, that too, said in one
+// line on stderr; OpenBLAS reads it only as it loads. Re-executes the binary
+// (same pid, arguments and environment) once if a variable was set; returns
+// otherwise, or if the re-execution failed (one line on stderr; the process
+// goes on as it was). Not thread-safe: call before any thread of the
+// program's own starts.
 void UseTheCpusBlasKernels(char** argv);
 
 // The CPU kernels this process's numerics run, as

@@ -15,11 +15,13 @@
 namespace imca::nn {
 
 // The exception boundary: runs `f` and turns anything LibTorch (or the
-// standard library) throws into INTERNAL "<what>: <message>". `f` returns
-// void, absl::Status or absl::StatusOr<T>; so does TorchCall.
+// standard library) throws into "<what>: <message>" with `code` (INTERNAL
+// unless the caller knows better: a file that parsed but does not fit is
+// INVALID_ARGUMENT). `f` returns void, absl::Status or absl::StatusOr<T>;
+// so does TorchCall.
 template <typename F>
-auto TorchCall(absl::string_view what, F&& f) -> std::conditional_t<
-    std::is_void_v<std::invoke_result_t<F>>, absl::Status, std::invoke_result_t<F>> {
+auto TorchCall(absl::string_view what, F&& f, absl::StatusCode code = absl::StatusCode::kInternal)
+    -> std::conditional_t<std::is_void_v<std::invoke_result_t<F>>, absl::Status, std::invoke_result_t<F>> {
   try {
     if constexpr (std::is_void_v<std::invoke_result_t<F>>) {
       f();
@@ -28,9 +30,9 @@ auto TorchCall(absl::string_view what, F&& f) -> std::conditional_t<
       return f();
     }
   } catch (const c10::Error& e) {
-    return absl::InternalError(absl::StrCat(what, ": ", e.what_without_backtrace()));
+    return absl::Status(code, absl::StrCat(what, ": ", e.what_without_backtrace()));
   } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat(what, ": ", e.what()));
+    return absl::Status(code, absl::StrCat(what, ": ", e.what()));
   }
 }
 

@@ -80,6 +80,10 @@ inline int SampleCategorical(const float* probs, int count, double u) {
   return count - 1;
 }
 
+// The seed of the stream an actor run with seed `seed` draws its action
+// samples from (Actor; ./imca env rollout --seed draws the same).
+inline uint64_t ActionSamplingSeed(uint64_t seed) { return seed * 7919 + 17; }
+
 }  // namespace imca
 
 #endif  // IMCA_PROTOCOL_POLICY_MLP_H_

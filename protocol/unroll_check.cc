@@ -6,42 +6,20 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/strip.h"
+#include "base/checks.h"
 #include "base/status_macros.h"
 
 namespace imca {
 
-std::string RejectionReason(v1::Rejection rejection) {
-  return absl::AsciiStrToLower(absl::StripPrefix(v1::Rejection_Name(rejection), "REJECTION_"));
-}
-
-std::vector<metrics::Counter*> AddRejectionCounters(metrics::Registry* registry, const metrics::Family& family) {
-  std::vector<metrics::Counter*> counters(v1::Rejection_ARRAYSIZE, nullptr);
+std::vector<std::string> RejectionReasons() {
+  std::vector<std::string> reasons(v1::Rejection_ARRAYSIZE);
   for (int r = v1::Rejection_MIN; r <= v1::Rejection_MAX; ++r) {
     if (!v1::Rejection_IsValid(r) || r == v1::REJECTION_NONE) continue;
-    counters[r] = &registry->AddCounter(family, {{"reason", RejectionReason(static_cast<v1::Rejection>(r))}});
+    reasons[r] = absl::AsciiStrToLower(absl::StripPrefix(v1::Rejection_Name(r), "REJECTION_"));
   }
-  return counters;
+  return reasons;
 }
 namespace {
-
-template <typename Field>
-absl::Status CheckSize(const Field& field, const char* name, int64_t expected) {
-  if (field.size() != expected) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("unroll.", name, " has ", field.size(), " elements, expected ", expected));
-  }
-  return absl::OkStatus();
-}
-
-template <typename Field>
-absl::Status CheckFinite(const Field& field, const char* name) {
-  for (int i = 0; i < field.size(); ++i) {
-    if (!std::isfinite(field[i])) {
-      return absl::InvalidArgumentError(absl::StrCat("unroll.", name, "[", i, "] is not finite"));
-    }
-  }
-  return absl::OkStatus();
-}
 
 template <typename Field>
 absl::Status CheckMagnitude(const Field& field, const char* name) {
@@ -110,11 +88,11 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
                                                    " exceeds the limit of ", kMaxTransitions));
   }
   const int64_t n = u.num_agents(), a_count = u.num_actions(), k = u.state_size();
-  IMCA_RETURN_IF_ERROR(CheckSize(u.states(), "states", (transitions + u.num_envs()) * k));
-  IMCA_RETURN_IF_ERROR(CheckSize(u.next_states(), "next_states", transitions * k));
-  IMCA_RETURN_IF_ERROR(CheckSize(u.actions(), "actions", transitions * n));
-  IMCA_RETURN_IF_ERROR(CheckSize(u.action_probs(), "action_probs", transitions * n * a_count));
-  IMCA_RETURN_IF_ERROR(CheckSize(u.episode_ids(), "episode_ids", transitions));
+  IMCA_RETURN_IF_ERROR(CheckSize("unroll", "states", u.states(), (transitions + u.num_envs()) * k));
+  IMCA_RETURN_IF_ERROR(CheckSize("unroll", "next_states", u.next_states(), transitions * k));
+  IMCA_RETURN_IF_ERROR(CheckSize("unroll", "actions", u.actions(), transitions * n));
+  IMCA_RETURN_IF_ERROR(CheckSize("unroll", "action_probs", u.action_probs(), transitions * n * a_count));
+  IMCA_RETURN_IF_ERROR(CheckSize("unroll", "episode_ids", u.episode_ids(), transitions));
   for (int i = 0; i < u.actions_size(); ++i) {
     if (u.actions(i) < 0 || u.actions(i) >= a_count) {
       return absl::InvalidArgumentError(
@@ -139,11 +117,11 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
     }
   }
   if (needs.rewards) {
-    IMCA_RETURN_IF_ERROR(CheckSize(u.rewards(), "rewards", transitions * n));
-    IMCA_RETURN_IF_ERROR(CheckSize(u.behaviour_log_probs(), "behaviour_log_probs", transitions * n));
-    IMCA_RETURN_IF_ERROR(CheckSize(u.terminated(), "terminated", transitions));
-    IMCA_RETURN_IF_ERROR(CheckSize(u.truncated(), "truncated", transitions));
-    IMCA_RETURN_IF_ERROR(CheckFinite(u.rewards(), "rewards"));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "rewards", u.rewards(), transitions * n));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "behaviour_log_probs", u.behaviour_log_probs(), transitions * n));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "terminated", u.terminated(), transitions));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "truncated", u.truncated(), transitions));
+    IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "rewards", u.rewards()));
     IMCA_RETURN_IF_ERROR(CheckMagnitude(u.rewards(), "rewards"));
     for (int i = 0; i < u.behaviour_log_probs_size(); ++i) {
       const float lp = u.behaviour_log_probs(i);
@@ -163,24 +141,24 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
       }
     }
   }
-  if (u.terminated_size() != 0) IMCA_RETURN_IF_ERROR(CheckSize(u.terminated(), "terminated", transitions));
-  IMCA_RETURN_IF_ERROR(CheckFinite(u.episode_returns(), "episode_returns"));
-  IMCA_RETURN_IF_ERROR(CheckFinite(u.eval_returns(), "eval_returns"));
+  if (u.terminated_size() != 0) IMCA_RETURN_IF_ERROR(CheckSize("unroll", "terminated", u.terminated(), transitions));
+  IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "episode_returns", u.episode_returns()));
+  IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "eval_returns", u.eval_returns()));
   IMCA_RETURN_IF_ERROR(ValidateActorId(u.actor_id()));
   if (needs.intrinsic_rewards) {
-    IMCA_RETURN_IF_ERROR(CheckSize(u.intrinsic_rewards(), "intrinsic_rewards", transitions * n));
-    IMCA_RETURN_IF_ERROR(CheckFinite(u.intrinsic_rewards(), "intrinsic_rewards"));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "intrinsic_rewards", u.intrinsic_rewards(), transitions * n));
+    IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "intrinsic_rewards", u.intrinsic_rewards()));
     IMCA_RETURN_IF_ERROR(CheckMagnitude(u.intrinsic_rewards(), "intrinsic_rewards"));
     if (u.credit_shares_size() != 0) {
-      IMCA_RETURN_IF_ERROR(CheckSize(u.credit_shares(), "credit_shares", transitions * n));
+      IMCA_RETURN_IF_ERROR(CheckSize("unroll", "credit_shares", u.credit_shares(), transitions * n));
     }
     if (u.global_rewards_size() != 0) {
-      IMCA_RETURN_IF_ERROR(CheckSize(u.global_rewards(), "global_rewards", transitions));
-      IMCA_RETURN_IF_ERROR(CheckFinite(u.global_rewards(), "global_rewards"));
+      IMCA_RETURN_IF_ERROR(CheckSize("unroll", "global_rewards", u.global_rewards(), transitions));
+      IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "global_rewards", u.global_rewards()));
     }
     if (u.contributions_size() != 0) {
-      IMCA_RETURN_IF_ERROR(CheckSize(u.contributions(), "contributions", transitions * n));
-      IMCA_RETURN_IF_ERROR(CheckFinite(u.contributions(), "contributions"));
+      IMCA_RETURN_IF_ERROR(CheckSize("unroll", "contributions", u.contributions(), transitions * n));
+      IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "contributions", u.contributions()));
     }
   }
   if (needs.influences) {
@@ -188,10 +166,10 @@ absl::Status ValidateUnroll(const v1::Unroll& u, const env::Scenario& scenario,
       return absl::InvalidArgumentError(
           "unroll.influences is empty: an EDTI learner needs the reward server's influences (--reward edti)");
     }
-    IMCA_RETURN_IF_ERROR(CheckSize(u.influences(), "influences", transitions * n * n));
-    IMCA_RETURN_IF_ERROR(CheckFinite(u.influences(), "influences"));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "influences", u.influences(), transitions * n * n));
+    IMCA_RETURN_IF_ERROR(CheckFinite("unroll", "influences", u.influences()));
   } else if (u.influences_size() != 0) {
-    IMCA_RETURN_IF_ERROR(CheckSize(u.influences(), "influences", transitions * n * n));
+    IMCA_RETURN_IF_ERROR(CheckSize("unroll", "influences", u.influences(), transitions * n * n));
   }
   return absl::OkStatus();
 }

@@ -9,7 +9,6 @@
 #include "env/env.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
-#include "metrics/metrics.h"
 
 namespace imca {
 
@@ -27,12 +26,11 @@ inline constexpr int kMaxTransitions = 65536;
 // returns overflow a float.
 inline constexpr float kMaxAbsReward = 1e6f;
 
-// The lower-case name of a rejection without its prefix ("over_cap" for
-// REJECTION_OVER_CAP): the reason label of the dropped-unroll metrics.
-std::string RejectionReason(v1::Rejection rejection);
-// One counter of `family` per rejection reason, labelled reason=<name>, all
-// registered (at 0) now; indexed by v1::Rejection (null for REJECTION_NONE).
-std::vector<metrics::Counter*> AddRejectionCounters(metrics::Registry* registry, const metrics::Family& family);
+// The reason of each v1::Rejection, indexed by it: its lower-case name
+// without the prefix ("over_cap" for REJECTION_OVER_CAP), "" for
+// REJECTION_NONE. The reason label of the refused-unroll metrics
+// (metrics::Registry::AddCounterPerValue).
+std::vector<std::string> RejectionReasons();
 
 // Longest unroll.actor_id accepted, bytes.
 inline constexpr size_t kMaxActorIdBytes = 256;

@@ -28,6 +28,7 @@
 #include "env/featurizer.h"
 #include "env/vec_env.h"
 #include "envtool/render.h"
+#include "protocol/policy_names.h"
 
 namespace py = pybind11;
 
@@ -436,4 +437,16 @@ PYBIND11_MODULE(_core, m) {
   m.def("default_map_dir", &env::DefaultMapDir);
   m.def("env_seed", &env::VecEnv::EnvSeed, py::arg("seed"), py::arg("env"),
         "The seed of env `env`'s random stream under `seed` (imca_env --seed plays it).");
+  // The policy's tensor names as the learner writes them (protocol/policy_names.h).
+  m.def("policy_tensor_prefix", &imca::PolicyTensorPrefix, py::arg("agent_networks"), py::arg("k"));
+  m.def(
+      "layer_tensor_name",
+      [](const std::string& prefix, int layer, const std::string& part) {
+        return imca::LayerTensorName(prefix, layer, part);
+      },
+      py::arg("prefix"), py::arg("layer"), py::arg("part"));
+  m.def(
+      "input_norm_tensor_name",
+      [](const std::string& prefix, const std::string& part) { return imca::InputNormTensorName(prefix, part); },
+      py::arg("prefix"), py::arg("part"));
 }

@@ -45,7 +45,7 @@ TEST(ServiceFlagsTest, StatusFilesAreTheProtoInItsJsonMappingWithTheTime) {
   status.set_actor_id("actor-1");
   status.set_incarnation(0xfedcba9876543210ULL);
   status.set_unrolls_pushed(12);
-  status.set_state("acting");
+  status.set_state(v1::ActorStatus::ACTING);
   const double before = UnixSeconds();
   ASSERT_TRUE(WriteStatusFile(path, status).ok());
   std::ifstream in(path);
@@ -58,7 +58,7 @@ TEST(ServiceFlagsTest, StatusFilesAreTheProtoInItsJsonMappingWithTheTime) {
   // empty map as {}), 64-bit integers as numbers, then the time.
   EXPECT_THAT(line, StartsWith(R"({"actor_id":"actor-1","incarnation":18364758544493064720,)"
                                R"("unrolls_pushed":12,"unrolls_resent":0,"transitions_scored":0,)"
-                               R"("state":"acting","phase_seconds":{},"time":)"));
+                               R"("state":"ACTING","phase_seconds":{},"time":)"));
   const double time = std::stod(line.substr(line.rfind(':') + 1));
   EXPECT_GE(time, before - 0.001);
   EXPECT_LE(time, UnixSeconds() + 0.001);

@@ -26,8 +26,8 @@ import unittest.mock
 
 import yaml
 
-from imca_tools import binaries, cluster, grid, presets, runner, same_run
-from imca_tools.grid import cell_id
+from imca_tools import binaries, cluster, presets, runner, same_run
+from imca_tools.grid import cell_id, expand
 
 EXPERIMENT = binaries.module_argv("experiment")
 # A cell of about 20 s: long enough to be cancelled while it runs.
@@ -190,7 +190,7 @@ class SlurmTest(unittest.TestCase):
     def test_an_array_cancelled_in_part_and_resubmitted_ends_as_the_local_grid(self):
         grid = write_grid(self.tmp)
         local, cluster = os.path.join(self.tmp, "local"), os.path.join(self.tmp, "cluster")
-        cells = grid.expand(GRID["entries"], "test")
+        cells = expand(GRID["entries"], "test")
 
         t0 = time.time()
         r = self.experiment("--grid", grid, "--out", local, "--jobs", "2")
@@ -332,7 +332,7 @@ class KubernetesTest(unittest.TestCase):
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "quick-v3")
             config_map, job = self.manifest(out, "--cpus-per-task", "2", "--mem", "3G", "--jobs", "8")
-            cells = grid.expand(presets.presets()["quick"]["entries"], "quick")
+            cells = expand(presets.presets()["quick"]["entries"], "quick")
             self.assertEqual((config_map["kind"], job["kind"]), ("ConfigMap", "Job"))
             queue = json.loads(config_map["data"]["cells.json"])
             self.assertEqual(queue["cells"], json.loads(json.dumps(cells)))
@@ -403,7 +403,7 @@ class KubernetesTest(unittest.TestCase):
             env = binaries.module_env(dict(os.environ, JOB_COMPLETION_INDEX="0"))
             r = run(mapped, env=env)
             self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-            cells = grid.expand(grid["entries"], "test")
+            cells = expand(grid["entries"], "test")
             first = os.path.join(claim, "pods", "cells", cell_id(cells[0]))
             self.assertTrue(runner.finished(first, cells[0]), r.stdout)
             # A retried pod of a finished cell leaves it as it is.

@@ -221,6 +221,37 @@ class StepsToSuccessTest(unittest.TestCase):
         self.assertEqual(runs.steps_to(rows, 0.9, "train_success_rate"), 2048)
 
 
+class QuietRunTest(unittest.TestCase):
+    """A run that adds no metrics row says why on its progress line: the
+    newest line of the newest log (a disk full, a refused connection)."""
+
+    def test_the_progress_line_says_what_the_run_said_last_once_it_goes_quiet(self):
+        rows = [{"env_steps": "2048", "env_steps_per_sec": "1000", "success_rate": "0.5", "episode_return": "1",
+                 "intrinsic_reward": "0.01", "wall_seconds": "10"},
+                {"env_steps": "4096", "env_steps_per_sec": "1000", "success_rate": "0.5", "episode_return": "1",
+                 "intrinsic_reward": "0.01", "wall_seconds": "30"}]
+        self.assertIsNone(train.quiet_since(rows, last_change=100, now=159))  # Within three iterations (60 s).
+        self.assertEqual(train.quiet_since(rows, last_change=100, now=161), 61)
+        self.assertEqual(train.quiet_since([], last_change=100, now=131), 31)  # No row yet: 30 s.
+        with tempfile.TemporaryDirectory() as run_dir:
+            services = supervisor.Services(run_dir)
+            self.assertIsNone(services.newest_log_line())
+            services.procs = [["reward_server", None], ["learner", None]]
+            for name, text, mtime in (("learner", "learner: iteration 2\n", 1000),
+                                      ("reward_server", "serving\njournal write: No space left on device\n", 2000)):
+                with open(services.log_path(name), "w") as f:
+                    f.write(text)
+                os.utime(services.log_path(name), (mtime, mtime))
+            said = services.newest_log_line()
+            self.assertEqual(said, ("reward_server", "journal write: No space left on device"))
+            line = train.progress_line(rows[-1], 10_000, 0, (61, said))
+            self.assertTrue(line.startswith("steps 4,096/10,000"), line)
+            self.assertTrue(line.endswith(" | no new iteration for 1m01s: reward_server says journal write: No space "
+                                          "left on device"), line)
+            self.assertEqual(train.progress_line(None, 10_000, 0, (31, None)), "starting | no new iteration for 0m31s")
+            self.assertNotIn("no new iteration", train.progress_line(rows[-1], 10_000))
+
+
 class LauncherRunTest(unittest.TestCase):
     def test_short_run_leaves_a_complete_run_folder(self):
         with tempfile.TemporaryDirectory() as tmp:

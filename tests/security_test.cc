@@ -26,6 +26,7 @@
 #include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
+#include "learner/push_testing.h"
 #include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
@@ -514,12 +515,12 @@ TEST_F(SecurityTest, InventedActorIdsCannotGrowTheLearnersOrTheRewardServersBook
     u.set_sequence(sequence);
     return learner_->Push(std::move(u));
   };
-  EXPECT_TRUE(push("a", 1).ok());
-  EXPECT_TRUE(push("b", 1).ok());
-  const absl::Status third = push("c", 1);
-  EXPECT_TRUE(absl::IsResourceExhausted(third)) << third;
-  EXPECT_THAT(third.message(), HasSubstr("at most 2 actor ids"));
-  EXPECT_TRUE(push("a", 2).ok());  // Known ids go on.
+  EXPECT_TRUE(learner::Accepted(push("a", 1)));
+  EXPECT_TRUE(learner::Accepted(push("b", 1)));
+  const absl::StatusOr<learner::PushOutcome> third = push("c", 1);
+  EXPECT_EQ(learner::RejectionOf(third), v1::REJECTION_OVER_CAP) << learner::Why(third);
+  EXPECT_THAT(learner::Why(third), HasSubstr("at most 2 actor ids"));
+  EXPECT_TRUE(learner::Accepted(push("a", 2)));  // Known ids go on.
   EXPECT_EQ(Received(), 3);
 
   reward::ServiceLimits limits;

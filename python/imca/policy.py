@@ -16,6 +16,8 @@ import os
 
 import numpy as np
 
+from . import _core  # The tensor names, as the learner spells them (protocol/policy_names.h).
+
 LAYER_NORM_EPS = np.float32(1e-5)  # LibTorch's default, as the learner and the C++ evaluator.
 
 
@@ -48,29 +50,34 @@ class _Net:
                 raise ValueError(f"policy: tensor {name!r} has {t.ndim} dimensions, expected {shape_len}")
             return t
 
-        def norm(name, size):
-            gain, shift = tensor(name + ".weight", 1), tensor(name + ".bias", 1)
+        def norm(names, what, size):
+            gain, shift = tensor(names("weight"), 1), tensor(names("bias"), 1)
             if gain.shape != (size,) or shift.shape != (size,):
-                raise ValueError(f"policy: LayerNorm {name!r} is not of size {size}")
+                raise ValueError(f"policy: LayerNorm {what!r} is not of size {size}")
             return gain, shift
 
-        self.input_norm = norm(prefix + "input_norm", obs_dim) if layer_norm else None
+        def layer_name(layer, part):
+            return _core.layer_tensor_name(prefix, layer, part)
+
+        self.input_norm = (norm(lambda part: _core.input_norm_tensor_name(prefix, part), prefix + "input_norm",
+                                obs_dim) if layer_norm else None)
         self.weights, self.biases, self.norms = [], [], []
         width, layer = obs_dim, 0
-        while prefix + f"{layer}.weight" in tensors:
-            w = tensor(prefix + f"{layer}.weight", 2)
-            b = tensor(prefix + f"{layer}.bias", 1)
+        while layer_name(layer, "weight") in tensors:
+            w = tensor(layer_name(layer, "weight"), 2)
+            b = tensor(layer_name(layer, "bias"), 1)
             if w.shape[1] != width or b.shape != (w.shape[0],):
                 raise ValueError(f"policy: layer {prefix}{layer} is {w.shape} / {b.shape}, "
                                  f"expected inputs of size {width}")
             width = w.shape[0]
             self.weights.append(np.ascontiguousarray(w.T))  # [in, out]: x @ W.T as Eigen does.
             self.biases.append(b)
-            if layer_norm and prefix + f"{layer + 1}.weight" in tensors:
-                self.norms.append(norm(prefix + f"{layer}.norm", width))
+            if layer_norm and layer_name(layer + 1, "weight") in tensors:
+                self.norms.append(norm(lambda part, layer=layer: layer_name(layer, f"norm.{part}"),
+                                       f"{prefix}{layer}.norm", width))
             layer += 1
         if not self.weights:
-            raise ValueError(f"policy: tensor {prefix + '0.weight'!r} is missing")
+            raise ValueError(f"policy: tensor {layer_name(0, 'weight')!r} is missing")
         if width != num_actions:
             raise ValueError(f"policy: {prefix} output size {width} != num_actions {num_actions}")
 
@@ -135,8 +142,7 @@ class Policy:
         self.tensors = tensors
         layer_norm = architecture == "mlp_tanh_layernorm"
         self._relu = architecture == "mlp_relu"
-        prefixes = (["policy."] if self.agent_networks == 0
-                    else [f"agent{k}.policy." for k in range(self.agent_networks)])
+        prefixes = [_core.policy_tensor_prefix(self.agent_networks, k) for k in range(max(self.agent_networks, 1))]
         self._nets = [_Net(tensors, p, self.obs_dim, self.num_actions, layer_norm) for p in prefixes]
 
     def __call__(self, obs):

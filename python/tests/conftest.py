@@ -37,7 +37,7 @@ class Server:
         self.log = open(self.port_file + ".log", "w")
         self.process = subprocess.Popen(
             [binary(program), "--listen=127.0.0.1:0", f"--port_file={self.port_file}", *flags],
-            stdout=self.log, stderr=subprocess.STDOUT, env=dict(os.environ, OMP_WAIT_POLICY="passive"))
+            stdout=self.log, stderr=subprocess.STDOUT)
         deadline = time.time() + 60
         while not (os.path.exists(self.port_file) and open(self.port_file).read().strip()):
             if self.process.poll() is not None or time.time() > deadline:

@@ -61,6 +61,32 @@ def test_scripted_episodes_match_the_env_tool_bit_for_bit(scenario, tmp_path):
         assert ours[last][1][e] or ours[last][2][e], "the tool's episode ended where ours did"
 
 
+@pytest.mark.parametrize("scenario", ["predator_prey", "coop_nav"])
+def test_a_seeded_reset_plays_the_env_tools_episode_step_for_step(scenario, tmp_path):
+    """reset(seed=s) and imca_env --seed env_seed(s, e): one stream, the
+    reset's draws and then the steps' (the prey's moves, contested cells)."""
+    E, seed = 3, 9
+    env = imca.make(scenario, num_envs=E, seed=seed)
+    _, info = env.reset(seed=seed)
+    start = info["state"].copy()
+    rng = np.random.default_rng(3)
+    script = rng.integers(0, env.num_actions, (40, E, env.num_agents)).astype(np.int32)
+    reached = []
+    for t in range(len(script)):
+        _, _, terminated, truncated, info = env.step(script[t])
+        reached.append(info["final_state"].copy())
+        if (terminated | truncated).any():
+            break
+    for e in range(E):
+        path = tmp_path / f"actions{e}.txt"
+        path.write_text("\n".join(" ".join(map(str, script[t, e])) for t in range(len(reached))) + "\n")
+        lines = env_tool("script", f"--scenario={scenario}", f"--seed={_core.env_seed(seed, e)}", f"--actions={path}",
+                         "--json")
+        assert tool_state(lines[0]) == start[e].tolist()
+        for t, line in enumerate(lines[1:len(reached) + 1]):
+            assert tool_state(line) == reached[t][e].tolist(), (e, t)
+
+
 def test_auto_reset_within_the_step():
     env = imca.make("coop_nav", num_envs=2, seed=3, step_limit=5)
     obs, info = env.reset(seed=3)

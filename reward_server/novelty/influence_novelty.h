@@ -11,7 +11,7 @@
 namespace imca::reward {
 
 // EITI and EDTI (Wang et al. 2020) from the count tables of the released
-// code (BASELINES.md 1.2-1.5; docs/baselines.md), on the agents' cells only:
+// code (EDTI's baselines/Curiosity.py; docs/baselines.md), on the agents' cells only:
 // for every ordered pair (i influences j),
 //   c_{i->j} = 1 - p(s'_j | s_j, a_j) / p(s'_j | s_i, a_i, s_j, a_j)
 // (or, with log_form, log p(s'_j | s_i, a_i, s_j, a_j) - log p(s'_j | s_j, a_j)),

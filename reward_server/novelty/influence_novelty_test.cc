@@ -1,4 +1,4 @@
-// EITI / EDTI influence counts (BASELINES.md 1.2-1.5) against numbers worked
+// EITI / EDTI influence counts (docs/baselines.md, "What the server counts") against numbers worked
 // by hand for 2 agents on a 5-cell line, and the learner-facing outputs.
 #include "reward_server/novelty/influence_novelty.h"
 

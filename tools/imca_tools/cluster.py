@@ -266,8 +266,7 @@ def task_script(out, record):
     tools and kernel_pins, then the task command. Nodes must see the clone
     (its tools and build/bin) and DIR at the same paths (a shared
     filesystem)."""
-    env = {"IMCA_ROOT": binaries.ROOT, "IMCA_BIN": binaries.BIN, "PYTHONPATH": binaries.TOOLS,
-           "OMP_WAIT_POLICY": "passive", **kernel_pins()}
+    env = {"IMCA_ROOT": binaries.ROOT, "IMCA_BIN": binaries.BIN, "PYTHONPATH": binaries.TOOLS, **kernel_pins()}
     lines = ["#!/bin/bash",
              f"# imca experiment submission {record['number']}: task i runs cell i of "
              f"{os.path.basename(submission_path(out, record))} (tools/imca_tools/cluster.py).",

@@ -82,8 +82,7 @@ class Services:
         except OSError:
             pass
         log = open(self.log_path(name), "ab")
-        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_parent,
-                                env=dict(os.environ, OMP_WAIT_POLICY="passive"))
+        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_parent)
         log.close()
         for entry in self.procs:
             if entry[0] == name:
@@ -104,6 +103,20 @@ class Services:
             return lines[-1] if lines else f"{name} exited"
         except OSError:
             return f"{name} exited"
+
+    def newest_log_line(self):
+        """(process, its log's last line) of the log written last, or None:
+        what a run that makes no progress last said (a disk full, a refused
+        connection)."""
+        newest = None
+        for name, _ in self.procs:
+            try:
+                mtime = os.path.getmtime(self.log_path(name))
+            except OSError:
+                continue
+            if newest is None or mtime > newest[0]:
+                newest = (mtime, name)
+        return None if newest is None else (newest[1], self.last_log_line(newest[1]))
 
     def wait_port(self, name, proc, port_file, timeout=30.0):
         deadline = time.time() + timeout
@@ -208,7 +221,7 @@ class Services:
         if now - self._learner_moved < 2 * self.stall_seconds or any(a in self.pending for a in actors):
             return
         statuses = [read_json(self.status_file(a)) or {} for a in actors]
-        if statuses and all(st.get("state") == "waiting_policy" and now - st.get("time", 0) < self.stall_seconds / 2
+        if statuses and all(st.get("state") == "WAITING_POLICY" and now - st.get("time", 0) < self.stall_seconds / 2
                             for st in statuses):
             print(f"\nimca train: the learner has not trained for {now - self._learner_moved:.0f} s while every "
                   "actor waits for a policy; restarting the actors", file=sys.stderr, flush=True)

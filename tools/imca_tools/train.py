@@ -21,14 +21,40 @@ from .plan import parse_args, plan
 from .supervisor import Services
 
 
-def progress_line(row, budget, restarts=0):
-    """The live line of a run from its newest metrics row."""
+# A run that adds no metrics row for this long, or for three of its own
+# iterations if those are longer, says why on its progress line.
+QUIET_NOTE_SECONDS = 30
+
+
+def progress_line(row, budget, restarts=0, quiet=None):
+    """The live line of a run from its newest metrics row (None: none yet);
+    `quiet`, (seconds without a new row, (process, last log line) or None),
+    when the run has gone quiet (quiet_since)."""
+    note = ""
+    if quiet is not None:
+        seconds, said = quiet
+        note = f"no new iteration for {runs.fmt_duration(seconds)}"
+        if said is not None:
+            note += f": {said[0]} says {said[1]}"
+    if row is None:
+        return "starting" + (f" | {note}" if note else "")
     steps = int(row["env_steps"])
     rate = float(row["env_steps_per_sec"])
     eta = (budget - steps) / rate if rate > 0 else 0
     return (f"steps {steps:,}/{budget:,} | {rate:,.0f} steps/s | success {float(row['success_rate']):.1%}"
             f" | return {float(row['episode_return']):.2f} | intrinsic {float(row['intrinsic_reward']):.4f}"
-            f" | ETA {runs.fmt_duration(eta)}" + (f" | restarts {restarts}" if restarts else ""))
+            f" | ETA {runs.fmt_duration(eta)}" + (f" | restarts {restarts}" if restarts else "")
+            + (f" | {note}" if note else ""))
+
+
+def quiet_since(rows, last_change, now):
+    """Seconds the run has added no row, if that is long enough to say so
+    (QUIET_NOTE_SECONDS, or three of its last iterations), else None."""
+    interval = 0.0
+    if len(rows) >= 2:
+        interval = float(rows[-1]["wall_seconds"]) - float(rows[-2]["wall_seconds"])
+    quiet = now - last_change
+    return quiet if quiet > max(QUIET_NOTE_SECONDS, 3 * interval) else None
 
 
 def plot(run_dir, rows, title):
@@ -255,6 +281,7 @@ def run(args):
                     f"--seed={args.seed * 1000 + i + 1 + 1_000_003 * services.restarts[name]}"])
         tty = sys.stderr.isatty()
         last_print = 0.0
+        last_rows, last_change = 0, time.time()
         learner_done = False
         while not learner_done:
             if stop_requested:
@@ -265,8 +292,12 @@ def run(args):
             learner_done = "learner" in services.supervise(["reward_server", "learner"] + actors)
             services.check_deadlock("learner", actors)
             rows = runs.read_metrics(os.path.join(run_dir, "metrics.csv"))
-            if rows and not args.quiet and (tty or time.time() - last_print > 10):
-                line = progress_line(rows[-1], args.steps, services.total_restarts())
+            if len(rows) != last_rows:
+                last_rows, last_change = len(rows), time.time()
+            quiet = quiet_since(rows, last_change, time.time())
+            if (rows or quiet) and not args.quiet and (tty or time.time() - last_print > 10):
+                line = progress_line(rows[-1] if rows else None, args.steps, services.total_restarts(),
+                                     (quiet, services.newest_log_line()) if quiet else None)
                 print(("\r" + line + "\033[K") if tty else line, end="" if tty else "\n",
                       file=sys.stderr, flush=True)
                 last_print = time.time()

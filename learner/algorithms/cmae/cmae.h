@@ -17,8 +17,8 @@
 namespace imca::learner {
 
 // CMAE (Liu et al., ICML 2021) as its released gridworld code runs it
-// (q_learner.py, main.py with --tree_subspace --stochastic_select_subspace
-// --mixed_explore; BASELINES.md 3.1; docs/baselines.md "CMAE"): tabular
+// (CMAE's q_learner.py, main.py with --tree_subspace
+// --stochastic_select_subspace --mixed_explore; docs/baselines.md "CMAE"): tabular
 // Q-learning over joint states (env/joint_state.h), one exploration and one
 // exploitation table per agent, acting greedily on their mix.
 //

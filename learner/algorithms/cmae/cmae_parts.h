@@ -1,8 +1,8 @@
 #ifndef IMCA_LEARNER_ALGORITHMS_CMAE_CMAE_PARTS_H_
 #define IMCA_LEARNER_ALGORITHMS_CMAE_CMAE_PARTS_H_
 
-// The pieces of CMAE (cmae.h) as its released code has them (BASELINES.md
-// 3.1; q_learner.py's QLearning, Storage and ActiveQLearning), each alone so
+// The pieces of CMAE (cmae.h) as its released code has them (CMAE's
+// q_learner.py: QLearning, Storage and ActiveQLearning; docs/baselines.md), each alone so
 // that tests can work them by hand. Not thread-safe; the algorithm owns them.
 
 #include <array>

@@ -14,8 +14,8 @@
 
 namespace imca::learner {
 
-// MADDPG for discrete actions (Lowe et al. 2017, as BASELINES.md 2 reads the
-// released code and its PyTorch port; docs/learner.md "MADDPG"):
+// MADDPG for discrete actions (Lowe et al. 2017, as openai/maddpg's
+// trainer/maddpg.py and its PyTorch port run it; docs/learner.md "MADDPG"):
 // - actors mu_i(o_i) -> logits; acting samples softmax(logits), which is the
 //   hard Gumbel-softmax sample, so actors are unchanged;
 // - a centralised critic Q_i(o_1..o_n, a_1..a_n) per agent (one-hot joint

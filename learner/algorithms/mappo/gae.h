@@ -18,8 +18,8 @@ void ComputeGae(int64_t T, int64_t M, const float* rewards, const float* values,
                 const float* final_values, const bool* terminated, const bool* truncated,
                 float gamma, float lambda, float* advantages, float* returns);
 
-// EDTI's value-of-interaction coefficients (BASELINES.md 1.4-1.6: the
-// values that actually run with `--r_tv`, gamma_coor_tv = gamma_coor_r = 1).
+// EDTI's value-of-interaction coefficients (docs/baselines.md: the values
+// EDTI's code actually runs with `--r_tv`, gamma_coor_tv = gamma_coor_r = 1).
 struct EdtiCoefficients {
   float tv = 1.0f;             // gamma_coor_tv: the transition term.
   float tv_ext = 0.1f;         // gamma_coor_tv_e = beta_ext.

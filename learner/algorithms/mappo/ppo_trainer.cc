@@ -20,13 +20,16 @@
 #include "absl/strings/str_join.h"
 #include "absl/synchronization/mutex.h"
 #include "base/atomic_file.h"
+#include "base/checks.h"
 #include "base/enum_names.h"
 #include "base/lap.h"
+#include "base/side_thread.h"
 #include "base/status_macros.h"
 #include "nn/archive.h"
 #include "nn/mlp.h"
 #include "nn/policy_export.h"
 #include "nn/running_moments.h"
+#include "nn/torch_status.h"
 
 namespace imca::learner {
 
@@ -210,23 +213,6 @@ torch::Tensor NormaliseReturns(const std::vector<float>& returns, const nn::Runn
   return ((r.to(torch::kFloat64) - norm.scalar_mean()) / ReturnStd(norm)).to(torch::kFloat32);
 }
 
-absl::Status CheckSize(const char* field, size_t actual, int64_t expected) {
-  if (static_cast<int64_t>(actual) != expected) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("batch.", field, " has ", actual, " elements, expected ", expected));
-  }
-  return absl::OkStatus();
-}
-
-absl::Status CheckFinite(const char* field, const std::vector<float>& v) {
-  for (size_t i = 0; i < v.size(); ++i) {
-    if (!std::isfinite(v[i])) {
-      return absl::InvalidArgumentError(absl::StrCat("batch.", field, "[", i, "] is not finite"));
-    }
-  }
-  return absl::OkStatus();
-}
-
 // Parameters of `loaded` must have the shapes of `expected` (Module::load
 // adopts whatever shape the file holds).
 absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn::Module& loaded,
@@ -244,76 +230,6 @@ absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn:
   }
   return absl::OkStatus();
 }
-
-// One thread that runs one task at a time for its owner: Start() hands it a
-// task (once the previous one has ended), Wait() waits for it to end and
-// returns what it threw, Join() also rethrows that. Meant for one owner
-// thread, which must Wait before anything the task uses goes away.
-class SideThread {
- public:
-  explicit SideThread(int torch_threads)
-      : thread_([this, torch_threads] {
-          // OpenMP's thread count is per thread: without this the side
-          // thread's ops would use every core.
-          torch::set_num_threads(torch_threads);
-          Loop();
-        }) {}
-  ~SideThread() {
-    {
-      absl::MutexLock lock(&mu_);
-      stop_ = true;
-    }
-    thread_.join();
-  }
-
-  void Start(std::function<void()> task) ABSL_LOCKS_EXCLUDED(mu_) {
-    absl::MutexLock lock(&mu_);
-    mu_.Await(absl::Condition(this, &SideThread::Idle));
-    pending_ = std::move(task);
-  }
-
-  std::exception_ptr Wait() ABSL_LOCKS_EXCLUDED(mu_) {
-    absl::MutexLock lock(&mu_);
-    mu_.Await(absl::Condition(this, &SideThread::Idle));
-    return std::exchange(error_, nullptr);
-  }
-
-  void Join() ABSL_LOCKS_EXCLUDED(mu_) {
-    if (std::exception_ptr error = Wait()) std::rethrow_exception(error);
-  }
-
- private:
-  void Loop() ABSL_LOCKS_EXCLUDED(mu_) {
-    while (true) {
-      std::function<void()> task;
-      {
-        absl::MutexLock lock(&mu_);
-        mu_.Await(absl::Condition(this, &SideThread::HasWork));
-        if (pending_ == nullptr) return;  // Stopped, nothing left to run.
-        task.swap(pending_);              // Swapping cannot throw.
-        running_ = true;
-      }
-      std::exception_ptr error;
-      try {
-        task();
-      } catch (...) {
-        error = std::current_exception();
-      }
-      absl::MutexLock lock(&mu_);
-      error_ = error;
-      running_ = false;
-    }
-  }
-  bool Idle() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return pending_ == nullptr && !running_; }
-  bool HasWork() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) { return pending_ != nullptr || stop_; }
-
-  absl::Mutex mu_;
-  std::function<void()> pending_ ABSL_GUARDED_BY(mu_);  // Started, not yet picked up.
-  bool running_ ABSL_GUARDED_BY(mu_) = false;
-  std::exception_ptr error_ ABSL_GUARDED_BY(mu_);
-  bool stop_ ABSL_GUARDED_BY(mu_) = false;
-  std::thread thread_;  // Last: starts after the members it uses exist.
-};
 
 // Mean of (w - 1) - log w over samples, w = exp(log_probs - behaviour).
 double BehaviourKl(const torch::Tensor& log_probs, const torch::Tensor& behaviour_log_probs) {
@@ -343,7 +259,11 @@ struct PpoTrainer::Impl {
         num_actions_(num_actions),
         generator_(at::detail::createCPUGenerator(config.seed)) {
     model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
-    if (config.concurrent_critic) critic_thread_ = std::make_unique<SideThread>(config.threads);
+    if (config.concurrent_critic) {
+      // OpenMP's thread count is per thread: without this the side thread's
+      // ops would use every core.
+      critic_thread_ = std::make_unique<SideThread>([threads = config.threads] { torch::set_num_threads(threads); });
+    }
   }
 
   absl::Status ValidateBatch(const PpoBatch& batch) const;
@@ -374,14 +294,14 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
   if (b > std::numeric_limits<int64_t>::max() / std::max(obs_dim_, critic_dim_)) {
     return absl::InvalidArgumentError(absl::StrCat("batch.size ", b, " is too large"));
   }
-  IMCA_RETURN_IF_ERROR(CheckSize("obs", batch.obs.size(), b * obs_dim_));
-  IMCA_RETURN_IF_ERROR(CheckSize("critic_inputs", batch.critic_inputs.size(), b * critic_dim_));
-  IMCA_RETURN_IF_ERROR(CheckSize("actions", batch.actions.size(), b));
-  IMCA_RETURN_IF_ERROR(CheckSize("behaviour_log_probs", batch.behaviour_log_probs.size(), b));
-  IMCA_RETURN_IF_ERROR(CheckSize("advantages", batch.advantages.size(), b));
-  IMCA_RETURN_IF_ERROR(CheckSize("returns_ext", batch.returns_ext.size(), b));
-  IMCA_RETURN_IF_ERROR(CheckSize("returns_int", batch.returns_int.size(), b));
-  if (config_.value_heads == 3) IMCA_RETURN_IF_ERROR(CheckSize("returns_voi", batch.returns_voi.size(), b));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "obs", batch.obs, b * obs_dim_));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "critic_inputs", batch.critic_inputs, b * critic_dim_));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "actions", batch.actions, b));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "behaviour_log_probs", batch.behaviour_log_probs, b));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "advantages", batch.advantages, b));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "returns_ext", batch.returns_ext, b));
+  IMCA_RETURN_IF_ERROR(CheckSize("batch", "returns_int", batch.returns_int, b));
+  if (config_.value_heads == 3) IMCA_RETURN_IF_ERROR(CheckSize("batch", "returns_voi", batch.returns_voi, b));
   for (int64_t i = 0; i < b; ++i) {
     const int32_t a = batch.actions[i];
     if (a < 0 || a >= num_actions_) {
@@ -389,13 +309,13 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
           absl::StrCat("batch.actions[", i, "] = ", a, " is out of range [0, ", num_actions_, ")"));
     }
   }
-  IMCA_RETURN_IF_ERROR(CheckFinite("obs", batch.obs));
-  IMCA_RETURN_IF_ERROR(CheckFinite("critic_inputs", batch.critic_inputs));
-  IMCA_RETURN_IF_ERROR(CheckFinite("behaviour_log_probs", batch.behaviour_log_probs));
-  IMCA_RETURN_IF_ERROR(CheckFinite("advantages", batch.advantages));
-  IMCA_RETURN_IF_ERROR(CheckFinite("returns_ext", batch.returns_ext));
-  IMCA_RETURN_IF_ERROR(CheckFinite("returns_int", batch.returns_int));
-  if (config_.value_heads == 3) IMCA_RETURN_IF_ERROR(CheckFinite("returns_voi", batch.returns_voi));
+  IMCA_RETURN_IF_ERROR(CheckFinite("batch", "obs", batch.obs));
+  IMCA_RETURN_IF_ERROR(CheckFinite("batch", "critic_inputs", batch.critic_inputs));
+  IMCA_RETURN_IF_ERROR(CheckFinite("batch", "behaviour_log_probs", batch.behaviour_log_probs));
+  IMCA_RETURN_IF_ERROR(CheckFinite("batch", "advantages", batch.advantages));
+  IMCA_RETURN_IF_ERROR(CheckFinite("batch", "returns_ext", batch.returns_ext));
+  IMCA_RETURN_IF_ERROR(CheckFinite("batch", "returns_int", batch.returns_int));
+  if (config_.value_heads == 3) IMCA_RETURN_IF_ERROR(CheckFinite("batch", "returns_voi", batch.returns_voi));
   for (int64_t i = 0; i < b; ++i) {
     if (batch.behaviour_log_probs[i] > kMaxLogProb) {
       return absl::InvalidArgumentError(absl::StrCat("batch.behaviour_log_probs[", i,
@@ -739,20 +659,16 @@ absl::StatusOr<std::unique_ptr<PpoTrainer>> PpoTrainer::Create(const PpoConfig& 
   if (!(config.hidden_gain > 0)) return invalid("config.hidden_gain must be > 0");
   if (!(config.value_clip >= 0)) return invalid("config.value_clip must be >= 0");
   if (!(config.huber_delta >= 0)) return invalid("config.huber_delta must be >= 0");
-  try {
+  return nn::TorchCall("PpoTrainer", [&]() -> absl::StatusOr<std::unique_ptr<PpoTrainer>> {
     return std::unique_ptr<PpoTrainer>(
         new PpoTrainer(std::make_unique<Impl>(config, obs_dim, critic_dim, num_actions)));
-  } catch (const c10::Error& e) {
-    return absl::InternalError(absl::StrCat("PpoTrainer: ", e.what_without_backtrace()));
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("PpoTrainer: ", e.what()));
-  }
+  });
 }
 
 absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float* v_ext,
                                 float* v_int, float* v_voi) {
   if (batch <= 0) return absl::OkStatus();
-  try {
+  return nn::TorchCall("critic forward", [&] {
     torch::NoGradGuard no_grad;
     // from_blob does not copy; the forward pass only reads its input.
     const torch::Tensor x = torch::from_blob(const_cast<float*>(critic_inputs),
@@ -768,23 +684,12 @@ absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float
       v_int[i] = heads >= 2 ? static_cast<float>(v[i][1] * int_std + int_mean) : 0.0f;
       if (v_voi != nullptr) v_voi[i] = heads == 3 ? static_cast<float>(v[i][2] * voi_std + voi_mean) : 0.0f;
     }
-  } catch (const c10::Error& e) {
-    return absl::InternalError(absl::StrCat("critic forward: ", e.what_without_backtrace()));
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("critic forward: ", e.what()));
-  }
-  return absl::OkStatus();
+  });
 }
 
 absl::StatusOr<PpoStats> PpoTrainer::Train(const PpoBatch& batch) {
   IMCA_RETURN_IF_ERROR(impl_->ValidateBatch(batch));
-  try {
-    return impl_->Train(batch);
-  } catch (const c10::Error& e) {
-    return absl::InternalError(absl::StrCat("PPO training failed: ", e.what_without_backtrace()));
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("PPO training failed: ", e.what()));
-  }
+  return nn::TorchCall("PPO training failed", [&]() -> absl::StatusOr<PpoStats> { return impl_->Train(batch); });
 }
 
 v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
@@ -794,39 +699,21 @@ v1::Policy PpoTrainer::ExportPolicy(int64_t version) const {
 
 absl::Status PpoTrainer::Save(const std::string& path) const {
   return WriteFileAtomically(path, [&](std::ostream& out) {
-    try {
+    return nn::TorchCall(absl::StrCat("saving checkpoint ", path), [&] {
       torch::serialize::OutputArchive archive;
       impl_->WriteTo(archive);
       archive.save_to(out);
-    } catch (const c10::Error& e) {
-      return absl::InternalError(absl::StrCat("saving checkpoint ", path, ": ", e.what_without_backtrace()));
-    } catch (const std::exception& e) {
-      return absl::InternalError(absl::StrCat("saving checkpoint ", path, ": ", e.what()));
-    }
-    return absl::OkStatus();
+    });
   });
 }
 
 absl::Status PpoTrainer::Load(const std::string& path) {
   torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const c10::Error& e) {
-    return absl::InternalError(
-        absl::StrCat("reading checkpoint ", path, ": ", e.what_without_backtrace()));
-  } catch (const std::exception& e) {
-    return absl::InternalError(absl::StrCat("reading checkpoint ", path, ": ", e.what()));
-  }
+  IMCA_RETURN_IF_ERROR(nn::TorchCall(absl::StrCat("reading checkpoint ", path), [&] { archive.load_from(path); }));
   // The file parsed; a missing entry or a bad tensor means it does not fit.
-  try {
-    return impl_->ReadFrom(archive, path);
-  } catch (const c10::Error& e) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "checkpoint ", path, " does not fit this trainer: ", e.what_without_backtrace()));
-  } catch (const std::exception& e) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("checkpoint ", path, " does not fit this trainer: ", e.what()));
-  }
+  return nn::TorchCall(
+      absl::StrCat("checkpoint ", path, " does not fit this trainer"), [&] { return impl_->ReadFrom(archive, path); },
+      absl::StatusCode::kInvalidArgument);
 }
 
 int PpoTrainer::obs_dim() const { return impl_->obs_dim_; }

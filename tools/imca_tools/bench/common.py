@@ -55,11 +55,10 @@ def millions(steps):
     return "-" if steps is None else f"{steps / 1e6:.2f}M"
 
 
-def run_binary(name, *args, passive=False):
+def run_binary(name, *args):
     """The completed run of the binary `name` (in BIN) with `args`, its output
-    captured as text; passive: with OMP_WAIT_POLICY=passive."""
-    return subprocess.run([os.path.join(BIN, name)] + [str(a) for a in args], capture_output=True, text=True,
-                          env=dict(os.environ, OMP_WAIT_POLICY="passive") if passive else None)
+    captured as text."""
+    return subprocess.run([os.path.join(BIN, name)] + [str(a) for a in args], capture_output=True, text=True)
 
 
 def exit_if_failed(r, name):

@@ -90,7 +90,7 @@ def python_score_bench(args, base):
     import imca
     print(f"\n== Score from Python: imca.RewardClient against reward_server (coop_nav, count, imca) on "
           f"loopback; medians of {args.rounds} rounds ==", flush=True)
-    r = run_binary("bench_reward", args.rounds, "count", "coop_nav", passive=True)
+    r = run_binary("bench_reward", args.rounds, "count", "coop_nav")
     exit_if_failed(r, "bench_reward")
     cxx = float(r.stdout.splitlines()[1].split()[3])
     server, address = start_reward_server(base, "coop_nav")

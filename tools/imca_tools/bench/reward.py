@@ -4,6 +4,6 @@ from .common import exit_if_failed, run_binary
 
 
 def run(args, base):
-    r = run_binary("bench_reward", args.rounds, passive=True)
+    r = run_binary("bench_reward", args.rounds)
     print(r.stdout, end="")
     exit_if_failed(r, "bench_reward")

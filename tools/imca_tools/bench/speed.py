@@ -13,7 +13,7 @@ V1_FLAGS = [word for key, value in runs.V1_DEFAULTS.items()
 
 def run(args, base):
     print("== component ceilings (medians of timed rounds) ==", flush=True)
-    r = run_binary("bench_speed", args.rounds, passive=True)
+    r = run_binary("bench_speed", args.rounds)
     print(r.stdout, end="")
     figures = dict(line.split() for line in r.stdout.splitlines() if line.strip())
     # ./imca train's defaults, then those before the learner ablation
