@@ -8,15 +8,15 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "base/enum_names.h"
-#include "base/lap.h"
-#include "base/status_macros.h"
+#include "common/base/enum_names.h"
+#include "common/base/lap.h"
+#include "common/base/status_macros.h"
+#include "common/protocol/policy_mlp.h"
+#include "common/protocol/unroll_check.h"
+#include "common/rpc/grpc_util.h"
+#include "common/rpc/service_flags.h"
+#include "common/rpc/transport.h"
 #include "learner/algorithms/acting.h"
-#include "protocol/policy_mlp.h"
-#include "protocol/unroll_check.h"
-#include "rpc/grpc_util.h"
-#include "rpc/service_flags.h"
-#include "rpc/transport.h"
 
 namespace imca::actor {
 

@@ -16,13 +16,13 @@
 #include "actor/policy_client.h"
 #include "actor/stop_signal.h"
 #include "actor/unroll_sender.h"
-#include "base/rng.h"
-#include "env/env.h"
-#include "env/vec_env.h"
+#include "common/base/rng.h"
+#include "common/env/env.h"
+#include "common/env/vec_env.h"
+#include "common/metrics/metrics.h"
+#include "common/rpc/grpc_util.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "imca/v1/reward_service.grpc.pb.h"
-#include "metrics/metrics.h"
-#include "rpc/grpc_util.h"
 
 namespace imca::actor {
 

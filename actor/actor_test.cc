@@ -16,7 +16,8 @@
 #include <string>
 #include <thread>
 
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/rpc/grpc_util.h"
 #include "google/protobuf/util/json_util.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/mappo/mappo_options.h"
@@ -25,7 +26,6 @@
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 #include "reward_server/scorer_testing.h"
-#include "rpc/grpc_util.h"
 
 namespace imca {
 namespace {

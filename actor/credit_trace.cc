@@ -5,8 +5,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "base/atomic_file.h"
-#include "env/env.h"
+#include "common/base/atomic_file.h"
+#include "common/env/env.h"
 
 namespace imca::actor {
 

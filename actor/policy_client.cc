@@ -5,8 +5,8 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "rpc/grpc_util.h"
-#include "rpc/transport.h"
+#include "common/rpc/grpc_util.h"
+#include "common/rpc/transport.h"
 
 namespace imca::actor {
 

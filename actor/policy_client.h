@@ -9,9 +9,9 @@
 
 #include "absl/status/status.h"
 #include "actor/stop_signal.h"
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/protocol/acting_policy.h"
 #include "imca/v1/learner_service.grpc.pb.h"
-#include "protocol/acting_policy.h"
 
 namespace imca::actor {
 

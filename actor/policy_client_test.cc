@@ -7,11 +7,11 @@
 #include <thread>
 
 #include "absl/synchronization/mutex.h"
-#include "env/featurizer.h"
+#include "common/env/featurizer.h"
+#include "common/rpc/grpc_util.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
-#include "rpc/grpc_util.h"
 
 namespace imca::actor {
 namespace {

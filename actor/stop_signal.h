@@ -7,7 +7,7 @@
 
 #include "absl/base/thread_annotations.h"
 #include "absl/synchronization/mutex.h"
-#include "rpc/grpc_util.h"
+#include "common/rpc/grpc_util.h"
 
 namespace imca::actor {
 

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <utility>
 
-#include "rpc/grpc_util.h"
+#include "common/rpc/grpc_util.h"
 
 namespace imca::actor {
 

@@ -14,8 +14,8 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "actor/stop_signal.h"
+#include "common/metrics/metrics.h"
 #include "imca/v1/learner_service.grpc.pb.h"
-#include "metrics/metrics.h"
 
 namespace imca::actor {
 

@@ -11,7 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "base/atomic_file.h"
+#include "common/base/atomic_file.h"
 
 namespace imca::envtool {
 namespace {

@@ -8,7 +8,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "absl/types/span.h"
-#include "env/env.h"
+#include "common/env/env.h"
 
 // Text formats of the imca_env tool (docs/envtool.md): action lines and
 // files, the --state flag, and the JSON line printed per step. Free functions

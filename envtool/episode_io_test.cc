@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

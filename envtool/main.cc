@@ -19,13 +19,13 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "base/rng.h"
-#include "env/env.h"
-#include "env/scenario_flags.h"
+#include "common/base/rng.h"
+#include "common/env/env.h"
+#include "common/env/scenario_flags.h"
+#include "common/protocol/acting_policy.h"
+#include "common/protocol/policy_mlp.h"
 #include "envtool/episode_io.h"
 #include "envtool/render.h"
-#include "protocol/acting_policy.h"
-#include "protocol/policy_mlp.h"
 
 ABSL_FLAG(uint64_t, seed, 1, "seed of Reset and of the scenario's random draws");
 ABSL_FLAG(std::string, state, "", "start from this state \"z,c1,...,t\" instead of a Reset");
@@ -333,7 +333,7 @@ int main(int argc, char** argv) {
   // matches files named after the program).
   absl::FlagsUsageConfig usage;
   usage.contains_help_flags = usage.contains_helpshort_flags = [](absl::string_view file) {
-    return absl::EndsWith(file, "envtool/main.cc") || absl::EndsWith(file, "env/scenario_flags.cc");
+    return absl::EndsWith(file, "envtool/main.cc") || absl::EndsWith(file, "common/env/scenario_flags.cc");
   };
   absl::SetFlagsUsageConfig(usage);
   return imca::envtool::Main(absl::ParseCommandLine(argc, argv));

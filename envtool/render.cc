@@ -12,7 +12,7 @@
 #include <cstring>
 
 #include "absl/strings/str_cat.h"
-#include "base/status_macros.h"
+#include "common/base/status_macros.h"
 
 namespace imca::envtool {
 namespace {

@@ -8,7 +8,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "env/env.h"
+#include "common/env/env.h"
 
 struct GifFileType;  // gif_lib.h
 

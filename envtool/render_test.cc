@@ -10,7 +10,7 @@
 #include <tuple>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 

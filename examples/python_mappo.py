@@ -8,7 +8,7 @@ own trainer.
 
 Without --reward_server it starts build/bin/reward_server (count novelty,
 IMCA credit) on a free port itself. The PPO settings are ./imca train's for
-coop_nav (learner/learner_config.h, env/scenarios/coop_nav.cc's tuning): 64 envs x 32
+coop_nav (learner/learner_config.h, common/env/scenarios/coop_nav.cc's tuning): 64 envs x 32
 steps = 2048 joint steps per iteration, 4 epochs of 4 minibatches, lr 1e-3
 with separate actor and critic Adam optimisers, clip 0.2, entropy 0.01,
 gamma 0.99 (both heads), GAE lambda 0.95, 64-wide tanh MLPs, a shared
@@ -67,7 +67,7 @@ def gae(rewards, values, last_values, terminated, truncated, bootstrap, gamma, l
 
 class RunningMoments:
     """Running mean and population variance per value head, merged batch by
-    batch (Chan et al.), from a pseudo-sample of count 1e-4 (nn/running_moments.h)."""
+    batch (Chan et al.), from a pseudo-sample of count 1e-4 (common/nn/running_moments.h)."""
 
     def __init__(self, heads):
         self.mean = torch.zeros(heads, dtype=torch.float64)

@@ -3,7 +3,7 @@
 
 #include <memory>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "fuzz/fuzz_check.h"
 #include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"

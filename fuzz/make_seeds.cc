@@ -7,11 +7,11 @@
 #include <fstream>
 #include <string>
 
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/protocol/test_unrolls.h"
 #include "fuzz/score_kinds.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/reward_service.pb.h"
-#include "protocol/test_unrolls.h"
 
 namespace fs = std::filesystem;
 using namespace imca;

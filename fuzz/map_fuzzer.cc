@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "env/env.h"
-#include "env/grid_map.h"
-#include "env/vec_env.h"
+#include "common/env/env.h"
+#include "common/env/grid_map.h"
+#include "common/env/vec_env.h"
 #include "fuzz/fuzz_check.h"
 
 using namespace imca;

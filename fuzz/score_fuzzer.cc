@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "fuzz/fuzz_check.h"
 #include "fuzz/score_kinds.h"
 #include "google/protobuf/stubs/logging.h"

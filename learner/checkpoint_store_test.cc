@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "base/atomic_file.h"
+#include "common/base/atomic_file.h"
 #include "gtest/gtest.h"
 
 namespace imca::learner {

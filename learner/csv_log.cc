@@ -8,8 +8,8 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "base/atomic_file.h"
-#include "base/status_macros.h"
+#include "common/base/atomic_file.h"
+#include "common/base/status_macros.h"
 
 namespace imca::learner {
 namespace {

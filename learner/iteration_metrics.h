@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "absl/container/flat_hash_map.h"
-#include "metrics/metrics.h"
+#include "common/metrics/metrics.h"
 
 namespace imca::learner {
 

@@ -11,15 +11,15 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "base/atomic_file.h"
-#include "base/enum_names.h"
-#include "base/lap.h"
-#include "base/status_macros.h"
+#include "common/base/atomic_file.h"
+#include "common/base/enum_names.h"
+#include "common/base/lap.h"
+#include "common/base/status_macros.h"
+#include "common/nn/blas_kernels.h"
+#include "common/nn/threads.h"
+#include "common/protocol/policy_table.h"
+#include "common/protocol/unroll_check.h"
 #include "learner/algorithms/registry.h"
-#include "nn/blas_kernels.h"
-#include "nn/threads.h"
-#include "protocol/policy_table.h"
-#include "protocol/unroll_check.h"
 
 namespace imca::learner {
 namespace {
@@ -79,7 +79,7 @@ absl::StatusOr<std::unique_ptr<Learner>> Learner::Create(const env::Scenario* sc
   IMCA_ASSIGN_OR_RETURN(const AlgorithmEntry* entry, Algorithms().Find(config.algo));
   LearnerConfig named = config;
   named.algo = entry->name;
-  nn::SetTorchThreads(config.threads);  // Once per process (nn/threads.h).
+  nn::SetTorchThreads(config.threads);  // Once per process (common/nn/threads.h).
   IMCA_ASSIGN_OR_RETURN(std::unique_ptr<Algorithm> algorithm, entry->create(scenario, named));
   auto learner = std::unique_ptr<Learner>(new Learner(scenario, named, std::move(algorithm)));
   if (config.max_batch_bytes < 1) return absl::InvalidArgumentError("max_batch_bytes must be >= 1");

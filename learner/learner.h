@@ -15,9 +15,10 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
-#include "base/rng.h"
-#include "env/env.h"
-#include "env/featurizer.h"
+#include "common/base/rng.h"
+#include "common/env/env.h"
+#include "common/env/featurizer.h"
+#include "common/metrics/metrics.h"
 #include "imca/v1/learner_service.pb.h"
 #include "imca/v1/unroll.pb.h"
 #include "learner/algorithms/interface.h"
@@ -26,7 +27,6 @@
 #include "learner/iteration_metrics.h"
 #include "learner/learner_config.h"
 #include "learner/unroll_queue.h"
-#include "metrics/metrics.h"
 
 namespace imca::learner {
 

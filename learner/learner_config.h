@@ -17,7 +17,7 @@ enum class TimeLimit {
   kTerminal,   // As termination: no bootstrap (on-policy's MPE runner).
 };
 
-// "bootstrap" / "terminal" (the flag's spelling; base/settings.h).
+// "bootstrap" / "terminal" (the flag's spelling; common/base/settings.h).
 std::string TimeLimitName(TimeLimit limit);
 std::vector<std::string> SettingChoices(TimeLimit);
 bool AbslParseFlag(absl::string_view text, TimeLimit* limit, std::string* error);
@@ -89,7 +89,7 @@ struct LearnerConfig {
   int64_t max_batch_bytes = int64_t{8192} * 1000 * 1000;  // --max_batch_mb 8192
 };
 
-// The settings every algorithm's learner shares (base/settings.h): type,
+// The settings every algorithm's learner shares (common/base/settings.h): type,
 // flag, field of LearnerConfig, help. The flags --algo and --max_batch_mb
 // (max_batch_bytes in MB) are learner_flags.cc's own; run_dir and
 // trained_log are the binary's wiring, not settings.

@@ -5,8 +5,8 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
-#include "base/json.h"
-#include "base/status_macros.h"
+#include "common/base/json.h"
+#include "common/base/status_macros.h"
 #include "learner/algorithms/registry.h"
 
 IMCA_LEARNER_SETTINGS(IMCA_SETTING_FLAG)

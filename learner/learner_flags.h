@@ -6,7 +6,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "base/settings.h"
+#include "common/base/settings.h"
 #include "learner/learner_config.h"
 
 namespace imca::learner {

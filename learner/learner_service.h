@@ -1,10 +1,10 @@
 #ifndef IMCA_LEARNER_LEARNER_SERVICE_H_
 #define IMCA_LEARNER_LEARNER_SERVICE_H_
 
+#include "common/metrics/metrics.h"
+#include "common/rpc/admission.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "learner/learner.h"
-#include "metrics/metrics.h"
-#include "rpc/admission.h"
 
 namespace imca::learner {
 

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/protocol/test_unrolls.h"
 #include "gtest/gtest.h"
-#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {

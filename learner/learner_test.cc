@@ -10,12 +10,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "env/env.h"
-#include "env/featurizer.h"
+#include "common/env/env.h"
+#include "common/env/featurizer.h"
+#include "common/metrics/metrics_testing.h"
+#include "common/protocol/test_unrolls.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
-#include "metrics/metrics_testing.h"
-#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {

@@ -5,8 +5,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
-#include "base/status_macros.h"
-#include "protocol/unroll_check.h"
+#include "common/base/status_macros.h"
+#include "common/protocol/unroll_check.h"
 
 namespace imca::learner {
 UnrollQueue::UnrollQueue(Options options) : options_(std::move(options)) {}

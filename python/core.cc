@@ -24,11 +24,11 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "env/env.h"
-#include "env/featurizer.h"
-#include "env/vec_env.h"
+#include "common/env/env.h"
+#include "common/env/featurizer.h"
+#include "common/env/vec_env.h"
+#include "common/protocol/policy_names.h"
 #include "envtool/render.h"
-#include "protocol/policy_names.h"
 
 namespace py = pybind11;
 
@@ -118,7 +118,7 @@ std::string IndexText(const char* name, int64_t flat, const std::vector<py::ssiz
   return out + "]";
 }
 
-// The scenario options of every binary (env/scenario_flags.cc), by their
+// The scenario options of every binary (common/env/scenario_flags.cc), by their
 // Python names.
 struct Options {
   std::string map;
@@ -437,7 +437,7 @@ PYBIND11_MODULE(_core, m) {
   m.def("default_map_dir", &env::DefaultMapDir);
   m.def("env_seed", &env::VecEnv::EnvSeed, py::arg("seed"), py::arg("env"),
         "The seed of env `env`'s random stream under `seed` (imca_env --seed plays it).");
-  // The policy's tensor names as the learner writes them (protocol/policy_names.h).
+  // The policy's tensor names as the learner writes them (common/protocol/policy_names.h).
   m.def("policy_tensor_prefix", &imca::PolicyTensorPrefix, py::arg("agent_networks"), py::arg("k"));
   m.def(
       "layer_tensor_name",

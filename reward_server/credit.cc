@@ -1,7 +1,7 @@
 #include "reward_server/credit.h"
 
 #include "absl/strings/str_cat.h"
-#include "base/enum_names.h"
+#include "common/base/enum_names.h"
 #include "reward_server/scorer.h"
 
 namespace imca::reward {

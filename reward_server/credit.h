@@ -20,7 +20,7 @@ absl::StatusOr<Permutation> ParsePermutation(absl::string_view name);
 std::string PermutationName(Permutation permutation);
 // Every permutation mode's name (reward_server --list).
 std::vector<std::string> PermutationNames();
-// Their flag spelling, the names above (base/settings.h).
+// Their flag spelling, the names above (common/base/settings.h).
 std::vector<std::string> SettingChoices(Permutation);
 bool AbslParseFlag(absl::string_view text, Permutation* permutation, std::string* error);
 std::string AbslUnparseFlag(Permutation permutation);
@@ -42,11 +42,11 @@ struct ScorerConfig {
   // theirs as the deferred updates run, in that order.
   bool deterministic = false;
   // LibTorch intra-op threads of the process, for the learned kinds (rnd,
-  // sf); set once per process (nn/threads.h).
+  // sf); set once per process (common/nn/threads.h).
   int threads = 1;
 };
 
-// The settings every reward kind shares (base/settings.h): type, flag,
+// The settings every reward kind shares (common/base/settings.h): type, flag,
 // field of ScorerConfig, help. A kind's own are its registry entry's
 // (novelty/registry.h); --credit's choices are the credit rules'
 // (reward_flags.cc).

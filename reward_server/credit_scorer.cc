@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <vector>
 
-#include "base/lap.h"
-#include "base/status_macros.h"
+#include "common/base/lap.h"
+#include "common/base/status_macros.h"
 
 namespace imca::reward {
 

@@ -13,9 +13,9 @@
 #include <utility>
 #include <vector>
 
+#include "common/nn/threads.h"
+#include "common/protocol/test_unrolls.h"
 #include "gtest/gtest.h"
-#include "nn/threads.h"
-#include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/scorer_testing.h"
 

@@ -2,7 +2,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
-#include "base/status_macros.h"
+#include "common/base/status_macros.h"
 #include "reward_server/credit/registry.h"
 #include "reward_server/novelty/registry.h"
 

@@ -8,7 +8,7 @@
 #include <any>
 
 #include "absl/status/statusor.h"
-#include "env/env.h"
+#include "common/env/env.h"
 #include "reward_server/credit.h"
 #include "reward_server/credit_scorer.h"
 #include "reward_server/novelty/novelty.h"

@@ -6,7 +6,7 @@
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
-#include "base/status_macros.h"
+#include "common/base/status_macros.h"
 #include "reward_server/credit/registry.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/novelty/registry.h"

@@ -7,8 +7,8 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "base/json.h"
-#include "base/settings.h"
+#include "common/base/json.h"
+#include "common/base/settings.h"
 #include "reward_server/credit.h"
 
 namespace imca::reward {

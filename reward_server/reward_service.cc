@@ -8,10 +8,10 @@
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
-#include "nn/blas_kernels.h"
-#include "protocol/unroll_check.h"
-#include "rpc/grpc_util.h"
-#include "rpc/transport.h"
+#include "common/nn/blas_kernels.h"
+#include "common/protocol/unroll_check.h"
+#include "common/rpc/grpc_util.h"
+#include "common/rpc/transport.h"
 
 namespace imca::reward {
 

@@ -10,12 +10,12 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/container/flat_hash_map.h"
 #include "absl/synchronization/mutex.h"
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/metrics/metrics.h"
+#include "common/rpc/admission.h"
 #include "imca/v1/reward_service.grpc.pb.h"
-#include "metrics/metrics.h"
 #include "reward_server/credit.h"
 #include "reward_server/scorer.h"
-#include "rpc/admission.h"
 
 namespace imca::reward {
 

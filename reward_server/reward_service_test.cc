@@ -9,14 +9,14 @@
 
 #include <grpcpp/generic/generic_stub.h>
 
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/protocol/test_unrolls.h"
+#include "common/rpc/grpc_util.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/reward_service.grpc.pb.h"
-#include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
-#include "rpc/grpc_util.h"
 
 namespace imca::reward {
 namespace {

@@ -13,7 +13,7 @@
 namespace imca::reward {
 
 // A read-only view of N transitions, already validated against the scenario
-// (see protocol/unroll_check.h). Row-major arrays.
+// (see common/protocol/unroll_check.h). Row-major arrays.
 struct TransitionBatch {
   int64_t size = 0;                     // N = length * num_envs, time-major [t][e]
   int64_t length = 0;                   // T

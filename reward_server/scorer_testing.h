@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gtest/gtest.h"
 #include "imca/v1/unroll.pb.h"
 #include "reward_server/credit_scorer.h"

@@ -12,10 +12,10 @@
 #include <memory>
 #include <vector>
 
-#include "base/rng.h"
-#include "env/env.h"
-#include "env/featurizer.h"
-#include "env/vec_env.h"
+#include "common/base/rng.h"
+#include "common/env/env.h"
+#include "common/env/featurizer.h"
+#include "common/env/vec_env.h"
 
 namespace imca {
 namespace {

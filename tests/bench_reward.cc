@@ -14,12 +14,12 @@
 #include <string>
 #include <vector>
 
-#include "env/env.h"
-#include "nn/blas_kernels.h"
-#include "protocol/test_unrolls.h"
+#include "common/env/env.h"
+#include "common/nn/blas_kernels.h"
+#include "common/protocol/test_unrolls.h"
+#include "common/rpc/grpc_util.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
-#include "rpc/grpc_util.h"
 
 namespace imca {
 namespace {

@@ -32,9 +32,9 @@ os.environ["IMCA_MAP_DIR"] = os.path.join(ROOT, "maps")  # The services' childre
 COMPOSE = os.path.join(ROOT, "deploy", "docker-compose.yml")
 K8S_DIR = os.path.join(ROOT, "deploy", "k8s")
 BINARIES = ("reward_server", "learner", "actor")
-# env/scenario_flags.cc: every process must build the same scenario.
+# common/env/scenario_flags.cc: every process must build the same scenario.
 SCENARIO_FLAGS = ("scenario", "map", "num_agents", "step_limit", "success_reward", "step_penalty", "view_radius")
-# rpc/transport_flags.cc: the flags that name secret files.
+# common/rpc/transport_flags.cc: the flags that name secret files.
 TLS_FILE_FLAGS = ("tls_cert", "tls_key", "tls_ca", "token_file")
 
 

@@ -10,13 +10,13 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/protocol/test_unrolls.h"
+#include "common/rpc/grpc_util.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "imca/v1/reward_service.grpc.pb.h"
-#include "protocol/test_unrolls.h"
-#include "rpc/grpc_util.h"
 #include "tests/subprocess.h"
 
 namespace imca {

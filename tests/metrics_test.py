@@ -376,7 +376,7 @@ class OneDefinitionTest(unittest.TestCase):
         # name the sources spell.
         names = {c["prometheus"] for c in binaries.facts()["metrics_columns"] if c["prometheus"]}
         sources = []
-        for folder in ("base", "env", "metrics", "rpc", "protocol", "learner", "reward_server", "actor", "nn", "envtool"):
+        for folder in ("common", "learner", "reward_server", "actor", "envtool"):
             for dirpath, _, files in os.walk(os.path.join(ROOT, folder)):
                 sources += [os.path.join(dirpath, f) for f in files
                             if f.endswith((".cc", ".h")) and not f.endswith("_test.cc")]

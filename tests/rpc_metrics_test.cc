@@ -1,7 +1,7 @@
 // gRPC calls counted and timed on both sides of a real loopback connection:
 // by method and status code, unknown methods as "other", one latency
-// observation per completed call (rpc/rpc_metrics.h).
-#include "rpc/rpc_metrics.h"
+// observation per completed call (common/rpc/rpc_metrics.h).
+#include "common/rpc/rpc_metrics.h"
 
 #include <chrono>
 #include <memory>
@@ -11,15 +11,15 @@
 #include <grpcpp/grpcpp.h>
 
 #include "absl/strings/str_cat.h"
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/metrics/metrics_testing.h"
+#include "common/rpc/grpc_util.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/learner_service.grpc.pb.h"
 #include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/learner.h"
 #include "learner/learner_service.h"
-#include "metrics/metrics_testing.h"
-#include "rpc/grpc_util.h"
 
 namespace imca {
 namespace {

@@ -18,7 +18,10 @@
 
 #include "absl/synchronization/mutex.h"
 #include "actor/actor.h"
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/protocol/test_unrolls.h"
+#include "common/rpc/grpc_util.h"
+#include "common/rpc/transport.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "imca/v1/learner_service.grpc.pb.h"
@@ -27,12 +30,9 @@
 #include "learner/learner.h"
 #include "learner/learner_service.h"
 #include "learner/push_testing.h"
-#include "protocol/test_unrolls.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/reward_service.h"
 #include "reward_server/scorer_testing.h"
-#include "rpc/grpc_util.h"
-#include "rpc/transport.h"
 
 namespace imca {
 namespace {

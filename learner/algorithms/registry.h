@@ -10,11 +10,11 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "base/json.h"
-#include "base/registry.h"
-#include "base/status_macros.h"
-#include "base/settings.h"
-#include "env/env.h"
+#include "common/base/json.h"
+#include "common/base/registry.h"
+#include "common/base/settings.h"
+#include "common/base/status_macros.h"
+#include "common/env/env.h"
 #include "learner/algorithms/interface.h"
 #include "learner/iteration_metrics.h"
 #include "learner/learner_config.h"
@@ -33,7 +33,7 @@ struct AlgorithmEntry {
   // `scenario` (collection, budget) and its own options (config->options) to
   // its defaults there, the scenario's tuning (env::TuningOf) included.
   std::function<void(absl::string_view scenario, LearnerConfig* config)> defaults;
-  // Its settings (base/settings.h): the rows --list prints, the flags given
+  // Its settings (common/base/settings.h): the rows --list prints, the flags given
   // set over config->options (errors: INVALID_ARGUMENT naming the flag), and
   // the options as "flag": value (--print_config).
   std::vector<SettingRow> settings;
@@ -52,7 +52,7 @@ struct AlgorithmEntry {
   bool complete() const { return defaults && fill_from_flags && add_json && create; }
 };
 
-// The learner's registry (base/registry.h): Find's errors name --algo.
+// The learner's registry (common/base/registry.h): Find's errors name --algo.
 class AlgorithmRegistry : public Registry<AlgorithmEntry> {
  public:
   AlgorithmRegistry() : Registry("--algo") {}

@@ -5,8 +5,8 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "base/status_macros.h"
-#include "env/env.h"
+#include "common/base/status_macros.h"
+#include "common/env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/acting.h"

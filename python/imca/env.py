@@ -14,7 +14,7 @@ EnvPool's rule, which spends the next step on the reset.
 
 info (every array has E rows, in env order):
   env_id          [E] int32     0..E-1
-  state           [E, K] int32  the compact states now (env/env.h)
+  state           [E, K] int32  the compact states now (common/env/env.h)
   global_state    [E, G] float32 the critic's input of those states
   final_state     [E, K] int32  the state each step reached, before any reset
   episode_id      [E] int64     the episode each step belonged to
@@ -37,7 +37,7 @@ import numpy as np
 from . import _core
 from .spaces import Box, Discrete
 
-# The scenario options of every binary (env/scenario_flags.cc), with the
+# The scenario options of every binary (common/env/scenario_flags.cc), with the
 # type each takes; None means the scenario's default.
 OPTIONS = {
     "map": str,           # --map: a map file (default maps/<scenario>.txt)

@@ -132,7 +132,7 @@ class ParallelEnv(_Base):
         return self._core.global_state(self._state)
 
     def compact_state(self):
-        """The compact state [K] int32 (env/env.h; what the reward server scores)."""
+        """The compact state [K] int32 (common/env/env.h; what the reward server scores)."""
         return self._state.copy()
 
     def render(self):

@@ -8,15 +8,15 @@ Every architecture the learner exports (proto/imca/v1/learner_service.proto's
 Policy.Architecture, named here in lower case): "mlp_tanh" and
 "mlp_tanh_layernorm" (MAPPO, shared), "mlp_relu" (MADDPG, shared or one
 network per agent). The forward pass is the C++ evaluator's
-(protocol/policy_mlp.cc) in float32: probabilities agree to 1e-6. CMAE's
+(common/protocol/policy_mlp.cc) in float32: probabilities agree to 1e-6. CMAE's
 "tabular_q" policies (Q-tables over joint states, not observations) are
-refused: actors and `imca_env rollout` act with them (protocol/policy_table.h).
+refused: actors and `imca_env rollout` act with them (common/protocol/policy_table.h).
 """
 import os
 
 import numpy as np
 
-from . import _core  # The tensor names, as the learner spells them (protocol/policy_names.h).
+from . import _core  # The tensor names, as the learner spells them (common/protocol/policy_names.h).
 
 LAYER_NORM_EPS = np.float32(1e-5)  # LibTorch's default, as the learner and the C++ evaluator.
 

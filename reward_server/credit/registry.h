@@ -8,7 +8,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "base/registry.h"
+#include "common/base/registry.h"
 #include "reward_server/scorer.h"
 
 namespace imca::reward {
@@ -49,7 +49,7 @@ struct CreditRuleEntry {
   bool complete() const { return static_cast<bool>(apply); }
 };
 
-// The registry (base/registry.h): Find's errors name --credit.
+// The registry (common/base/registry.h): Find's errors name --credit.
 class CreditRuleRegistry : public Registry<CreditRuleEntry> {
  public:
   CreditRuleRegistry() : Registry("--credit") {}

@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "reward_server/make_scorer.h"

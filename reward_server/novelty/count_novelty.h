@@ -4,8 +4,8 @@
 #include <string>
 #include <vector>
 
-#include "base/rng.h"
-#include "env/env.h"
+#include "common/base/rng.h"
+#include "common/env/env.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty/counted_novelty.h"
 #include "reward_server/novelty/joint_key.h"

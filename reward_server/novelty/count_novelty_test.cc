@@ -5,7 +5,7 @@
 #include <memory>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gtest/gtest.h"
 #include "reward_server/novelty/count_novelty.h"
 #include "reward_server/scorer_testing.h"

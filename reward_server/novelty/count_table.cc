@@ -17,9 +17,9 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "base/atomic_file.h"
-#include "base/hash.h"
-#include "base/status_macros.h"
+#include "common/base/atomic_file.h"
+#include "common/base/hash.h"
+#include "common/base/status_macros.h"
 
 namespace imca::reward {
 

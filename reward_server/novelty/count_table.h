@@ -40,7 +40,7 @@ class CountTable {
 };
 
 // The count tables of one reward kind with crash-safe persistence: a
-// snapshot file (written whole or not at all, base/atomic_file.h) plus an
+// snapshot file (written whole or not at all, common/base/atomic_file.h) plus an
 // append-only journal of every increment since it, so that a kill -9 loses
 // no increment whose Score was answered (docs/reliability.md).
 //

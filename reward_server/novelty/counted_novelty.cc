@@ -2,7 +2,7 @@
 
 #include <utility>
 
-#include "base/status_macros.h"
+#include "common/base/status_macros.h"
 
 namespace imca::reward {
 namespace {

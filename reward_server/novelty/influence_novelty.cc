@@ -4,7 +4,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
-#include "base/status_macros.h"
+#include "common/base/status_macros.h"
 
 namespace imca::reward {
 namespace {

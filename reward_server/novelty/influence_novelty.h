@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty/counted_novelty.h"
 #include "reward_server/novelty/novelty.h"
@@ -34,7 +34,7 @@ struct InfluenceConfig {
   bool log_form = false;   // The paper's log ratio instead of the released code's 1 - 1/x.
 };
 
-// EITI's and EDTI's settings (base/settings.h): type, flag, field of
+// EITI's and EDTI's settings (common/base/settings.h): type, flag, field of
 // InfluenceConfig (its `edti` is the kind's), help.
 #define IMCA_INFLUENCE_SETTINGS(X)                                                                                  \
   X(double, eta, eta, "eiti, edti: coefficient of the decentralised curiosity eta / sqrt(N_i(s_i) + 1)")            \

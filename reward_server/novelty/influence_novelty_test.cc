@@ -10,7 +10,7 @@
 
 #include <unistd.h>
 
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gtest/gtest.h"
 #include "reward_server/make_scorer.h"
 #include "reward_server/scorer_testing.h"

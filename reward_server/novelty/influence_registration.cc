@@ -2,7 +2,7 @@
 // table (influence_novelty.h) as flags, their defaults and factories.
 #include <memory>
 
-#include "base/settings.h"
+#include "common/base/settings.h"
 #include "reward_server/novelty/influence_novelty.h"
 #include "reward_server/novelty/registry.h"
 

@@ -3,7 +3,7 @@
 
 #include <cstdint>
 
-#include "env/env.h"
+#include "common/env/env.h"
 
 namespace imca::reward {
 

@@ -6,8 +6,8 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "base/atomic_file.h"
-#include "base/status_macros.h"
+#include "common/base/atomic_file.h"
+#include "common/base/status_macros.h"
 
 namespace imca::reward {
 namespace {

@@ -21,7 +21,7 @@ namespace imca::reward {
 //   - Compute: the arrays asked for must match the model the credit mode
 //     built, LibTorch's exceptions come back as INTERNAL naming the kind,
 //     and EndRequest runs after each request;
-//   - snapshots: the kind's bytes (Serialize, from nn/archive.h) copied
+//   - snapshots: the kind's bytes (Serialize, from common/nn/archive.h) copied
 //     under the owner's lock and written atomically without it.
 // Torch-free; a kind keeps its models behind its own Impl. Not thread-safe
 // (Novelty).

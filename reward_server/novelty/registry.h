@@ -11,11 +11,11 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "base/json.h"
-#include "base/registry.h"
-#include "base/settings.h"
-#include "env/env.h"
-#include "nn/threads.h"
+#include "common/base/json.h"
+#include "common/base/registry.h"
+#include "common/base/settings.h"
+#include "common/env/env.h"
+#include "common/nn/threads.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty/novelty.h"
 
@@ -31,7 +31,7 @@ struct NoveltyEntry {
   // Its differences from ScorerConfig's defaults (credit, beta), before the
   // scenario's bonus scale.
   std::function<void(ScorerConfig* config)> defaults;
-  // Its own settings (base/settings.h), held in a std::any of its options
+  // Its own settings (common/base/settings.h), held in a std::any of its options
   // type (none: that type's defaults): the rows --list prints, the flags
   // given set over `options`, and "flag": value (--print_config). Kinds may
   // share one options type and table (eiti and edti do).
@@ -47,7 +47,7 @@ struct NoveltyEntry {
   bool complete() const { return defaults && fill_from_flags && add_json && create; }
 };
 
-// The reward server's registry (base/registry.h): Find's errors name
+// The reward server's registry (common/base/registry.h): Find's errors name
 // --reward.
 class NoveltyRegistry : public Registry<NoveltyEntry> {
  public:

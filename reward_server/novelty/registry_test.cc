@@ -4,7 +4,7 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "env/env.h"
+#include "common/env/env.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "reward_server/make_scorer.h"

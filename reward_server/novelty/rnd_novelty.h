@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "env/env.h"
+#include "common/env/env.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty/learned_novelty.h"
 
@@ -25,7 +25,7 @@ struct RndConfig {
   int counterfactual_threads = 2;
 };
 
-// RND's settings (base/settings.h): type, flag, field of RndConfig, help.
+// RND's settings (common/base/settings.h): type, flag, field of RndConfig, help.
 #define IMCA_RND_SETTINGS(X)                                                                                        \
   X(double, rnd_lr, learning_rate, "rnd: Adam learning rate of the predictor")                                      \
   X(double, rnd_update_proportion, update_proportion, "rnd: share of each request's transitions the predictor "    \

@@ -10,10 +10,10 @@
 #include <memory>
 #include <vector>
 
-#include "env/env.h"
+#include "common/env/env.h"
+#include "common/nn/threads.h"
+#include "common/protocol/test_unrolls.h"
 #include "gtest/gtest.h"
-#include "nn/threads.h"
-#include "protocol/test_unrolls.h"
 
 namespace imca::reward {
 namespace {

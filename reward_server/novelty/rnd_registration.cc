@@ -1,6 +1,6 @@
 // RND's entry in the novelty registry: its settings (rnd_novelty.h) as
 // flags, its defaults and factory.
-#include "base/settings.h"
+#include "common/base/settings.h"
 #include "reward_server/novelty/registry.h"
 #include "reward_server/novelty/rnd_novelty.h"
 

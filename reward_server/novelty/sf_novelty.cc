@@ -7,11 +7,11 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
-#include "base/lap.h"
-#include "base/rng.h"
-#include "base/status_macros.h"
-#include "nn/archive.h"
-#include "nn/mlp.h"
+#include "common/base/lap.h"
+#include "common/base/rng.h"
+#include "common/base/status_macros.h"
+#include "common/nn/archive.h"
+#include "common/nn/mlp.h"
 #include "reward_server/novelty/joint_input.h"
 
 namespace imca::reward {

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "env/env.h"
+#include "common/env/env.h"
 #include "reward_server/credit.h"
 #include "reward_server/novelty/learned_novelty.h"
 
@@ -20,7 +20,7 @@ struct SfConfig {
   int target_update = 20;                // Requests between copies of psi into its target.
 };
 
-// SF's settings (base/settings.h): type, flag, field of SfConfig, help.
+// SF's settings (common/base/settings.h): type, flag, field of SfConfig, help.
 #define IMCA_SF_SETTINGS(X)                                          \
   X(double, sf_gamma, gamma, "sf: successor-feature discount")      \
   X(double, sf_lr, learning_rate, "sf: Adam learning rate of psi")

@@ -205,7 +205,7 @@ def _two_level_text(table, name, outer_default, scenario_default, both):
 
 def _scaled_text(table, name, kind_default, scenario_default):
     """A reward kind's default that scenarios scale (the bonus_scale of
-    env/env.h) as "0.5; 1 for eiti, edti; times 0.001 on pass_cmae, ...";
+    common/env/env.h) as "0.5; 1 for eiti, edti; times 0.001 on pass_cmae, ...";
     "the reward kind's and scenario's" where it is not one scale per scenario."""
     base = {k: by_scenario[scenario_default][name] for k, by_scenario in table.items()}
     if not all(isinstance(v, (int, float)) and v for v in base.values()):

@@ -162,7 +162,7 @@ def kernels(run_dir):
 
 
 def write_json_atomically(path, value):
-    """A file a crash leaves old or new, never half (as base/atomic_file.h)."""
+    """A file a crash leaves old or new, never half (as common/base/atomic_file.h)."""
     with open(path + ".tmp", "w") as f:
         json.dump(value, f, indent=2)
         f.flush()

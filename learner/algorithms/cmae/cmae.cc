@@ -9,10 +9,10 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "base/atomic_file.h"
-#include "base/lap.h"
-#include "base/rng.h"
-#include "base/status_macros.h"
+#include "common/base/atomic_file.h"
+#include "common/base/lap.h"
+#include "common/base/rng.h"
+#include "common/base/status_macros.h"
 #include "learner/algorithms/registry.h"
 
 namespace imca::learner {

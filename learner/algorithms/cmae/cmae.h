@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "env/env.h"
-#include "env/joint_state.h"
+#include "common/env/env.h"
+#include "common/env/joint_state.h"
 #include "learner/algorithms/cmae/cmae_options.h"
 #include "learner/algorithms/cmae/cmae_parts.h"
 #include "learner/algorithms/interface.h"
@@ -19,7 +19,7 @@ namespace imca::learner {
 // CMAE (Liu et al., ICML 2021) as its released gridworld code runs it
 // (CMAE's q_learner.py, main.py with --tree_subspace
 // --stochastic_select_subspace --mixed_explore; docs/baselines.md "CMAE"): tabular
-// Q-learning over joint states (env/joint_state.h), one exploration and one
+// Q-learning over joint states (common/env/joint_state.h), one exploration and one
 // exploitation table per agent, acting greedily on their mix.
 //
 // Each step of an unroll (in time order) joins its (actor, env) episode;

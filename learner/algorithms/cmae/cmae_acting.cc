@@ -1,5 +1,5 @@
+#include "common/protocol/policy_table.h"
 #include "learner/algorithms/acting.h"
-#include "protocol/policy_table.h"
 
 namespace imca::learner {
 

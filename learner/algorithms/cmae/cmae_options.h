@@ -30,7 +30,7 @@ struct CmaeConfig {
   int64_t max_table_mb = 4096;
 };
 
-// CMAE's settings (base/settings.h): type, flag, field of CmaeConfig, help.
+// CMAE's settings (common/base/settings.h): type, flag, field of CmaeConfig, help.
 #define IMCA_CMAE_SETTINGS(X)                                                                                       \
   X(double, cmae_gamma, gamma, "cmae: discount of its Q-tables")                                                    \
   X(double, cmae_explore_lr, explore_lr, "cmae: the exploration tables' learning rate (alpha1)")                    \

@@ -18,7 +18,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
-#include "base/rng.h"
+#include "common/base/rng.h"
 
 namespace imca::learner::cmae {
 

@@ -1,9 +1,9 @@
 // CMAE's entry in the algorithm registry: its settings (cmae_options.h)
 // as flags, defaults, metrics columns and factory.
-#include "base/settings.h"
+#include "common/base/settings.h"
+#include "common/protocol/policy_table.h"
 #include "learner/algorithms/cmae/cmae.h"
 #include "learner/algorithms/registry.h"
-#include "protocol/policy_table.h"
 
 IMCA_CMAE_SETTINGS(IMCA_SETTING_FLAG)
 

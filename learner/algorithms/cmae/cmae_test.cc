@@ -7,17 +7,17 @@
 #include <memory>
 #include <vector>
 
-#include "env/env.h"
-#include "env/grid_map.h"
-#include "env/joint_state.h"
-#include "env/vec_env.h"
+#include "common/env/env.h"
+#include "common/env/grid_map.h"
+#include "common/env/joint_state.h"
+#include "common/env/vec_env.h"
+#include "common/protocol/policy_mlp.h"
+#include "common/protocol/policy_table.h"
+#include "common/protocol/test_unrolls.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/cmae/cmae_parts.h"
 #include "learner/algorithms/registry.h"
 #include "learner/learner.h"
-#include "protocol/policy_mlp.h"
-#include "protocol/policy_table.h"
-#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {

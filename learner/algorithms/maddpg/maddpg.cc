@@ -10,15 +10,15 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
-#include "base/lap.h"
-#include "base/status_macros.h"
-#include "learner/algorithms/registry.h"
-#include "env/featurizer.h"
+#include "common/base/lap.h"
+#include "common/base/status_macros.h"
+#include "common/env/featurizer.h"
+#include "common/nn/archive.h"
+#include "common/nn/mlp.h"
+#include "common/nn/policy_export.h"
+#include "common/nn/torch_status.h"
 #include "learner/algorithms/maddpg/maddpg_internal.h"
-#include "nn/archive.h"
-#include "nn/mlp.h"
-#include "nn/policy_export.h"
-#include "nn/torch_status.h"
+#include "learner/algorithms/registry.h"
 
 namespace imca::learner {
 namespace {

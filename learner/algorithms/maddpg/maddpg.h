@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "env/env.h"
+#include "common/env/env.h"
 #include "learner/algorithms/interface.h"
 #include "learner/algorithms/maddpg/maddpg_options.h"
 #include "learner/learner_config.h"

@@ -29,7 +29,7 @@ struct MaddpgConfig {
   bool share_parameters = true;
 };
 
-// MADDPG's settings (base/settings.h): type, flag, field of MaddpgConfig, help.
+// MADDPG's settings (common/base/settings.h): type, flag, field of MaddpgConfig, help.
 #define IMCA_MADDPG_SETTINGS(X)                                                                                     \
   X(int, maddpg_hidden, hidden, "maddpg: hidden layer width (actor and critic)")                                   \
   X(double, maddpg_actor_lr, actor_lr, "maddpg: actor Adam learning rate")                                          \

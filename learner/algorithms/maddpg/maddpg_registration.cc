@@ -1,6 +1,6 @@
 // MADDPG's entry in the algorithm registry: its settings (maddpg_options.h)
 // as flags, defaults, metrics columns and factory.
-#include "base/settings.h"
+#include "common/base/settings.h"
 #include "learner/algorithms/maddpg/maddpg.h"
 #include "learner/algorithms/registry.h"
 

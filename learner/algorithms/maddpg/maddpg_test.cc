@@ -5,15 +5,15 @@
 #include <filesystem>
 #include <map>
 
-#include "base/rng.h"
-#include "env/env.h"
+#include "common/base/rng.h"
+#include "common/env/env.h"
+#include "common/protocol/test_unrolls.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "learner/algorithms/maddpg/maddpg_internal.h"
-#include "learner/iteration_metrics.h"
 #include "learner/algorithms/registry.h"
+#include "learner/iteration_metrics.h"
 #include "learner/learner.h"
-#include "protocol/test_unrolls.h"
 
 namespace imca::learner {
 namespace {

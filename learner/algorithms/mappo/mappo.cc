@@ -4,8 +4,8 @@
 #include <memory>
 
 #include "absl/strings/str_cat.h"
-#include "base/lap.h"
-#include "base/status_macros.h"
+#include "common/base/lap.h"
+#include "common/base/status_macros.h"
 #include "learner/algorithms/mappo/gae.h"
 #include "learner/algorithms/registry.h"
 

@@ -5,8 +5,8 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "env/env.h"
-#include "env/featurizer.h"
+#include "common/env/env.h"
+#include "common/env/featurizer.h"
 #include "learner/algorithms/interface.h"
 #include "learner/algorithms/mappo/mappo_options.h"
 #include "learner/algorithms/mappo/ppo_trainer.h"

@@ -17,12 +17,12 @@ enum class CriticInput {
               // on-policy's MAPPO "share_obs".
 };
 
-// "state" / "joint_obs" (the flag's spelling; base/settings.h).
+// "state" / "joint_obs" (the flag's spelling; common/base/settings.h).
 std::vector<std::string> SettingChoices(CriticInput);
 bool AbslParseFlag(absl::string_view text, CriticInput* input, std::string* error);
 std::string AbslUnparseFlag(CriticInput input);
 
-// PpoObjective's flag spelling, PpoObjectiveName's (base/settings.h).
+// PpoObjective's flag spelling, PpoObjectiveName's (common/base/settings.h).
 std::vector<std::string> SettingChoices(PpoObjective);
 bool AbslParseFlag(absl::string_view text, PpoObjective* objective, std::string* error);
 std::string AbslUnparseFlag(PpoObjective objective);
@@ -42,7 +42,7 @@ struct MappoOptions {
   EdtiCoefficients edti_coefficients;
 };
 
-// MAPPO's settings (base/settings.h): type, flag, field of MappoOptions, help.
+// MAPPO's settings (common/base/settings.h): type, flag, field of MappoOptions, help.
 #define IMCA_MAPPO_SETTINGS(X)                                                                                      \
   X(int, hidden, ppo.hidden, "hidden layer width")                                                                  \
   X(double, lr, ppo.learning_rate, "Adam learning rate")                                                            \

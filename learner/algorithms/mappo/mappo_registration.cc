@@ -2,9 +2,9 @@
 // as flags, defaults, metrics columns and factory.
 #include <utility>
 
-#include "base/enum_names.h"
-#include "base/settings.h"
-#include "env/env.h"
+#include "common/base/enum_names.h"
+#include "common/base/settings.h"
+#include "common/env/env.h"
 #include "learner/algorithms/mappo/mappo.h"
 #include "learner/algorithms/registry.h"
 

@@ -13,9 +13,9 @@
 
 #include <torch/torch.h>
 
+#include "common/protocol/policy_mlp.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
-#include "protocol/policy_mlp.h"
 
 namespace imca::learner {
 

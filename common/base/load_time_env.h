@@ -1,0 +1,34 @@
+#ifndef IMCA_COMMON_BASE_LOAD_TIME_ENV_H_
+#define IMCA_COMMON_BASE_LOAD_TIME_ENV_H_
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace imca {
+
+// Environment variables that libraries read once, as they load (libgomp's
+// OMP_WAIT_POLICY, OpenBLAS's OPENBLAS_CORETYPE): setting one in main() is
+// too late, so the process re-executes itself with it.
+
+// The OpenMP wait policy of every process of ours: after parallel work
+// libgomp's threads otherwise spin, taking the cores gRPC's and the other
+// processes' threads need. The one place it is chosen.
+inline constexpr char kOmpWaitPolicy[] = "passive";
+
+// Sets each (name, value) of `vars` whose name is unset and re-executes the
+// binary (/proc/self/exe: same pid, arguments and the environment plus
+// those) if any was; returns if none was unset, or if the re-execution
+// failed (one line on stderr naming argv[0]; the variables set are unset
+// again, so the process goes on as it was). After the re-execution they are
+// set, so this returns. Not thread-safe: call first in main().
+void ReexecWith(char** argv, const std::vector<std::pair<std::string, std::string>>& vars);
+
+// ReexecWith OMP_WAIT_POLICY = kOmpWaitPolicy: what main() of every binary
+// and test that may run OpenMP code calls first (LibTorch binaries call
+// nn::UseTheCpusBlasKernels, which adds OpenBLAS's variable).
+void UseOurLoadTimeEnv(char** argv);
+
+}  // namespace imca
+
+#endif  // IMCA_COMMON_BASE_LOAD_TIME_ENV_H_
