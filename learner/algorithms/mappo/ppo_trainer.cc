@@ -30,58 +30,18 @@
 #include "common/nn/policy_export.h"
 #include "common/nn/running_moments.h"
 #include "common/nn/torch_status.h"
+#include "learner/algorithms/mappo/ppo_losses.h"
 
 namespace imca::learner {
 
-namespace internal {
-
-constexpr double kMaxLogRatio = 10.0;
-
-// The PPO clipped surrogate as a loss to minimise:
-//   -mean(min(ratio * A, clamp(ratio, 1 - clip, 1 + clip) * A)),
-//   ratio = exp(log_probs - behaviour_log_probs).
-// Outside the clip range on the side the advantage pushes towards, the min
-// selects the clamped (constant) term, so such samples give no gradient.
-// Not in an anonymous namespace so that the unit test can call it.
-// Decoupled PPO (Hilton et al. 2021): the clip is measured against the
-// proximal policy, the behaviour policy enters only as the importance weight
-//   -mean(w * min(r A, clamp(r, 1 - clip, 1 + clip) A)),
-//   r = exp(log_probs - proximal), w = exp(proximal - behaviour).
-// `proximal` and `behaviour` carry no gradient. With proximal == behaviour
-// (w = 1) it is the textbook surrogate, ClippedSurrogateLoss.
-// Both log-ratios are clamped to [-kMaxLogRatio, kMaxLogRatio] before the
-// exp, as IMPALA's V-trace truncates its importance weights: whatever
-// log-probability an unroll carries, the ratio stays finite (at most e^10 =
-// 22026). PPO's own ratios stay within a few tenths of 0, where the clamp
-// does nothing; a sample beyond it gives no gradient through the ratio.
-torch::Tensor DecoupledSurrogateLoss(const torch::Tensor& log_probs,
-                                     const torch::Tensor& proximal_log_probs,
-                                     const torch::Tensor& behaviour_log_probs,
-                                     const torch::Tensor& advantages, double clip) {
-  const torch::Tensor ratio = torch::exp(torch::clamp(log_probs - proximal_log_probs, -kMaxLogRatio, kMaxLogRatio));
-  const torch::Tensor unclipped = ratio * advantages;
-  const torch::Tensor clipped = torch::clamp(ratio, 1.0 - clip, 1.0 + clip) * advantages;
-  const torch::Tensor weight =
-      torch::exp(torch::clamp(proximal_log_probs - behaviour_log_probs, -kMaxLogRatio, kMaxLogRatio));
-  return -(weight * torch::min(unclipped, clipped)).mean();
-}
-
-torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
-                                   const torch::Tensor& behaviour_log_probs,
-                                   const torch::Tensor& advantages, double clip) {
-  return DecoupledSurrogateLoss(log_probs, behaviour_log_probs, behaviour_log_probs, advantages, clip);
-}
-
-}  // namespace internal
-
 namespace {
 
-constexpr double kAdvantageEps = 1e-8;
+using internal::BehaviourKl;
+using internal::CopyFloats;
+using internal::NormaliseAdvantages;
+using internal::NormaliseReturns;
+using internal::ReturnStd;
 
-// Floor on the return normaliser's variance (std >= 0.01). Constant returns
-// (e.g. a sparse reward never seen yet) drive the variance to 0; dividing the
-// value targets by a vanishing std would blow up tiny differences.
-constexpr double kMinReturnVar = 1e-4;
 // A recorded log-probability may round slightly above 0 when p ~ 1.
 constexpr float kMaxLogProb = 1e-4f;
 
@@ -134,8 +94,6 @@ Model BuildModel(const PpoConfig& config, int obs_dim, int critic_dim, int num_a
   return model;
 }
 
-// The return normaliser's std, floored (kMinReturnVar).
-double ReturnStd(const nn::RunningMoments& norm) { return std::sqrt(std::max(norm.scalar_var(), kMinReturnVar)); }
 
 // The batch as tensors, advantages and value targets already normalised.
 struct TrainData {
@@ -196,23 +154,6 @@ struct StatsSums {
   }
 };
 
-torch::Tensor CopyFloats(const std::vector<float>& v, std::vector<int64_t> shape) {
-  return torch::from_blob(const_cast<float*>(v.data()), shape, torch::kFloat32).clone();
-}
-
-// Mean 0, std 1 (population std), in float64 for the statistics.
-torch::Tensor NormaliseAdvantages(const torch::Tensor& advantages) {
-  const torch::Tensor a = advantages.to(torch::kFloat64);
-  const torch::Tensor centred = a - a.mean();
-  const torch::Tensor std = centred.pow(2).mean().sqrt();
-  return (centred / (std + kAdvantageEps)).to(torch::kFloat32);
-}
-
-torch::Tensor NormaliseReturns(const std::vector<float>& returns, const nn::RunningMoments& norm) {
-  const torch::Tensor r = CopyFloats(returns, {static_cast<int64_t>(returns.size())});
-  return ((r.to(torch::kFloat64) - norm.scalar_mean()) / ReturnStd(norm)).to(torch::kFloat32);
-}
-
 // Parameters of `loaded` must have the shapes of `expected` (Module::load
 // adopts whatever shape the file holds).
 absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn::Module& loaded,
@@ -229,12 +170,6 @@ absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn:
     }
   }
   return absl::OkStatus();
-}
-
-// Mean of (w - 1) - log w over samples, w = exp(log_probs - behaviour).
-double BehaviourKl(const torch::Tensor& log_probs, const torch::Tensor& behaviour_log_probs) {
-  const torch::Tensor log_w = log_probs - behaviour_log_probs;
-  return ((log_w.exp() - 1.0) - log_w).to(torch::kFloat64).mean().item<double>();
 }
 
 // [layer_norm, value_heads, number of optimisers]: what a checkpoint must

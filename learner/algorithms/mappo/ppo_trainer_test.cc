@@ -16,19 +16,10 @@
 #include "common/protocol/policy_mlp.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "learner/algorithms/mappo/ppo_losses.h"
 
 namespace imca::learner {
 
-namespace internal {
-// Defined in ppo_trainer.cc.
-torch::Tensor ClippedSurrogateLoss(const torch::Tensor& log_probs,
-                                   const torch::Tensor& behaviour_log_probs,
-                                   const torch::Tensor& advantages, double clip);
-torch::Tensor DecoupledSurrogateLoss(const torch::Tensor& log_probs,
-                                     const torch::Tensor& proximal_log_probs,
-                                     const torch::Tensor& behaviour_log_probs,
-                                     const torch::Tensor& advantages, double clip);
-}  // namespace internal
 
 namespace {
 
