@@ -111,7 +111,7 @@ struct LearnerConfig {
   X(int, queue_capacity, queue_capacity, "unrolls waiting for training before PushUnrolls blocks the actors")       \
   X(uint64_t, seed, seed, "seed of network initialisation and sampling (minibatch shuffling, replay draws)")        \
   X(int, threads, threads, "LibTorch intra-op threads")                                                             \
-  X(::imca::learner::TimeLimit, time_limit, time_limit,                                                                              \
+  X(::imca::learner::TimeLimit, time_limit, time_limit,                                                             \
     "the step limit for the returns: bootstrap (truncation) or terminal (no bootstrap)")                           \
   X(double, gamma, gamma, "extrinsic discount")                                                                     \
   X(double, gamma_int, gamma_int, "intrinsic discount")                                                             \

@@ -11,8 +11,11 @@
 
 IMCA_LEARNER_SETTINGS(IMCA_SETTING_FLAG)
 ABSL_FLAG(std::string, algo, "", "the training algorithm, one of --list's algos (default: the first, mappo)");
-ABSL_FLAG(std::optional<int64_t>, max_batch_mb, std::nullopt,
-          "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)");
+namespace {
+constexpr char kMaxBatchMbHelp[] =
+    "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)";
+}  // namespace
+ABSL_FLAG(std::optional<int64_t>, max_batch_mb, std::nullopt, kMaxBatchMbHelp);
 
 namespace imca::learner {
 
@@ -25,8 +28,7 @@ IMCA_SETTING_TABLE(SharedSettings, LearnerConfig, IMCA_LEARNER_SETTINGS)
 std::vector<SettingRow> LearnerSettingRows() {
   std::vector<SettingRow> rows = SharedSettings().Rows();
   rows.insert(rows.begin(), {"algo", "enum", "the training algorithm", Algorithms().Names(), ""});
-  rows.push_back(MakeSettingRow<int64_t>(
-      "max_batch_mb", "cap on an iteration's feature arrays in MB (batch_steps and unroll sizes over it are rejected)"));
+  rows.push_back(MakeSettingRow<int64_t>("max_batch_mb", kMaxBatchMbHelp));
   return Algorithms().AllSettings(std::move(rows));
 }
 

@@ -29,7 +29,7 @@ struct TransitionBatch {
   // The unroll's actor id, sequence, actor incarnation and acting policy
   // version: the order in which a deterministic scorer applies one
   // version's updates.
-  std::string_view actor_id;
+  std::string_view actor_id = {};
   int64_t sequence = 0;
   uint64_t incarnation = 0;
   int64_t policy_version = 0;

@@ -12,6 +12,7 @@ deploy/, or changed in one home only, fails here.
 import json
 import os
 import subprocess
+import time
 import unittest
 
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -164,6 +165,41 @@ class ManifestsPassOnlyOverridesTest(unittest.TestCase):
 
     def test_kubernetes(self):
         self.check(deploy_test.k8s_services(deploy_test.load_k8s()[1]))
+
+
+class LoadTimeEnvTest(unittest.TestCase):
+    """The load-time environment (common/base/load_time_env.h): chosen by
+    the build, given by the tools to every binary they start, and set by a
+    binary started without it."""
+
+    def chosen(self):
+        with open(os.path.join(binaries.BIN, "load_time_env")) as f:
+            return dict(entry.split("=", 1) for entry in f.read().split())
+
+    def test_the_tools_give_it_to_their_children(self):
+        chosen = self.chosen()
+        self.assertIn("OMP_WAIT_POLICY", chosen)
+        for name, value in chosen.items():
+            self.assertEqual(os.environ.get(name), value, name)
+
+    def test_a_binary_started_without_it_sets_it_itself(self):
+        chosen = self.chosen()
+        env = {k: v for k, v in os.environ.items() if k not in chosen}
+        proc = subprocess.Popen([os.path.join(BIN, "reward_server"), "--listen=127.0.0.1:0"], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            seen = {}
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and seen != chosen:
+                with open(f"/proc/{proc.pid}/environ", "rb") as f:  # The re-executed image's, same pid.
+                    entries = f.read().decode(errors="replace").split("\0")
+                seen = {k: v for k, _, v in (e.partition("=") for e in entries) if k in chosen}
+                time.sleep(0.1)
+            self.assertEqual(seen, chosen)
+            self.assertIsNone(proc.poll())
+        finally:
+            proc.kill()
+            proc.wait()
 
 
 if __name__ == "__main__":

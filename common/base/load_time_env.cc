@@ -23,6 +23,10 @@ void ReexecWith(char** argv, const std::vector<std::pair<std::string, std::strin
   for (const std::string& name : set) unsetenv(name.c_str());
 }
 
-void UseOurLoadTimeEnv(char** argv) { ReexecWith(argv, {{"OMP_WAIT_POLICY", kOmpWaitPolicy}}); }
+std::vector<std::pair<std::string, std::string>> OurLoadTimeEnv() {
+  return {{"OMP_WAIT_POLICY", IMCA_OMP_WAIT_POLICY}};
+}
+
+void UseOurLoadTimeEnv(char** argv) { ReexecWith(argv, OurLoadTimeEnv()); }
 
 }  // namespace imca

@@ -11,10 +11,13 @@ namespace imca {
 // OMP_WAIT_POLICY, OpenBLAS's OPENBLAS_CORETYPE): setting one in main() is
 // too late, so the process re-executes itself with it.
 
-// The OpenMP wait policy of every process of ours: after parallel work
-// libgomp's threads otherwise spin, taking the cores gRPC's and the other
-// processes' threads need. The one place it is chosen.
-inline constexpr char kOmpWaitPolicy[] = "passive";
+// The load-time environment of every process of ours, as (name, value):
+// OMP_WAIT_POLICY (after parallel work libgomp's threads otherwise spin,
+// taking the cores gRPC's and the other processes' threads need). Chosen in
+// the top CMakeLists.txt (IMCA_LOAD_TIME_ENV), which also gives it to the
+// tests and writes it to bin/load_time_env for the tools: a process started
+// with it set does not re-execute.
+std::vector<std::pair<std::string, std::string>> OurLoadTimeEnv();
 
 // Sets each (name, value) of `vars` whose name is unset and re-executes the
 // binary (/proc/self/exe: same pid, arguments and the environment plus
@@ -24,7 +27,7 @@ inline constexpr char kOmpWaitPolicy[] = "passive";
 // set, so this returns. Not thread-safe: call first in main().
 void ReexecWith(char** argv, const std::vector<std::pair<std::string, std::string>>& vars);
 
-// ReexecWith OMP_WAIT_POLICY = kOmpWaitPolicy: what main() of every binary
+// ReexecWith(argv, OurLoadTimeEnv()): what main() of every binary
 // and test that may run OpenMP code calls first (LibTorch binaries call
 // nn::UseTheCpusBlasKernels, which adds OpenBLAS's variable).
 void UseOurLoadTimeEnv(char** argv);

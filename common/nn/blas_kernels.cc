@@ -56,7 +56,7 @@ std::string_view CoreTypeToForce(const char* set, const char* core, const CpuFea
 void UseTheCpusBlasKernels(char** argv) {
   const char* core = OpenBlasCore();
   const std::string type(CoreTypeToForce(std::getenv("OPENBLAS_CORETYPE"), core, ThisCpu()));
-  std::vector<std::pair<std::string, std::string>> vars = {{"OMP_WAIT_POLICY", kOmpWaitPolicy}};
+  std::vector<std::pair<std::string, std::string>> vars = OurLoadTimeEnv();
   if (!type.empty()) {
     std::fprintf(stderr, "%s: OpenBLAS chose its %s kernels on this CPU; restarting with OPENBLAS_CORETYPE=%s\n",
                  argv[0], core, type.c_str());

@@ -85,7 +85,9 @@ TEST(NoveltyRegistryTest, TheKindsAndTheirSettingsHaveOneNameEach) {
     EXPECT_FALSE(row.help.empty()) << row.name;
   }
   for (const SettingRow& row : RewardSettingRows()) {
-    if (row.name == "eta") EXPECT_EQ(row.owner, "eiti,edti");
+    if (row.name == "eta") {
+      EXPECT_EQ(row.owner, "eiti,edti");
+    }
   }
 }
 

@@ -16,6 +16,28 @@ import sys
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 # The binaries: $IMCA_BIN (build-asan/bin under ./imca test --sanitize), else build/bin.
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
+
+
+def _use_load_time_env():
+    """Gives this process's environment the binaries' load-time variables
+    (BIN/load_time_env, which the build writes: OMP_WAIT_POLICY) where they
+    are unset, so that every binary a tool starts has them from its start:
+    one started without re-executes itself to set them, loading LibTorch
+    twice (common/base/load_time_env.h). Before a build there is no file and
+    nothing to give."""
+    try:
+        with open(os.path.join(BIN, "load_time_env")) as f:
+            entries = f.read().split()
+    except OSError:
+        return
+    for entry in entries:
+        name, sep, value = entry.partition("=")
+        if sep and name:
+            os.environ.setdefault(name, value)
+
+
+_use_load_time_env()
+
 # The three services of a run, in start order.
 PROGRAMS = ("reward_server", "learner", "actor")
 # tools/, the folder this package is importable from (PYTHONPATH for a child

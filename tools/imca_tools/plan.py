@@ -47,21 +47,24 @@ def parser(description=None):
     return p
 
 
-def recorded_value(p, action, key, value, config_path):
-    """A setting config.json recorded, read as its option reads it from the
-    command line (p.error names the file and the setting if it cannot be):
-    a run folder may have been edited by hand."""
-    if action is None or (action.type is None and action.choices is None):
+def recorded_value(p, option, key, value, config_path):
+    """A setting config.json recorded, read as its ./imca train option
+    (`option`: (flag, argparse keywords), or None for a setting of no option)
+    reads it from the command line; p.error names the file and the setting if
+    it cannot be: a run folder may have been edited by hand."""
+    if option is None:
+        return value
+    flag, keywords = option
+    read_as, choices = keywords.get("type"), keywords.get("choices")
+    if read_as is None and choices is None:
         return value
     text = str(value).lower() if isinstance(value, bool) else str(value)
     try:
-        read = action.type(text) if action.type is not None else text
+        read = read_as(text) if read_as is not None else text
     except (TypeError, ValueError, argparse.ArgumentTypeError) as e:
-        p.error(f"argument --resume: {config_path}: {key} {value!r} is not a valid {action.option_strings[0]} "
-                f"({e})")
-    if action.choices is not None and read not in action.choices:
-        p.error(f"argument --resume: {config_path}: {key} {value!r} is not one of "
-                f"{', '.join(map(str, action.choices))}")
+        p.error(f"argument --resume: {config_path}: {key} {value!r} is not a valid {flag} ({e})")
+    if choices is not None and read not in choices:
+        p.error(f"argument --resume: {config_path}: {key} {value!r} is not one of {', '.join(map(str, choices))}")
     return read
 
 
@@ -85,12 +88,13 @@ def parse_args(argv, description=None):
         except (OSError, ValueError) as e:  # Not JSON, or not one object.
             p.error(f"argument --resume: {config_path}: not a run's config ({str(e).splitlines()[0]})")
         given = set(args.given)
-        actions = {action.dest: action for action in p._actions}
+        options_by_key = {dest(flag): (flag, options.argparse_keywords(flag, programs, keywords, known))
+                          for flag, programs, keywords in options.all_options(known)}
         for key, value in saved.items():
             if key in ("steps", "out", "resume", "reward_port", "learner_port", "given", "resolved"):
                 continue
             if hasattr(args, key) and value is not None:
-                setattr(args, key, recorded_value(p, actions.get(key), key, value, config_path))
+                setattr(args, key, recorded_value(p, options_by_key.get(key), key, value, config_path))
                 given.add(key)
         # Every recorded setting is passed on: the run resumes as it ran,
         # whatever the defaults are now.
