@@ -2,6 +2,7 @@
 """./imca bench learn (imca_tools.bench) against the real binaries: a tiny
 learning benchmark runs, resumes from its --out, and refuses to mix in
 finished runs of other settings."""
+import json
 import os
 import subprocess
 import tempfile
@@ -51,6 +52,30 @@ class BenchLearnTest(unittest.TestCase):
             self.assertEqual(r.returncode, 1, r.stderr)
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
             self.assertIn("--lrr", r.stderr)
+
+
+    def test_an_ablation_compares_every_variant_with_the_first(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            variants = os.path.join(tmp, "variants.json")
+            with open(variants, "w") as f:
+                json.dump({"base": {}, "faster": {"lr": 0.002}}, f)
+            r = bench("--out", os.path.join(tmp, "out"), "--variants", variants, *SMALL, *TRAIN)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertIn("P(sooner) against base", r.stdout)
+            header = next(line for line in r.stdout.splitlines() if line.startswith("| variant |"))
+            columns = [c.strip() for c in header.strip("|").split("|")]
+            self.assertEqual(columns[3:5], ["IQM", "P(sooner)"])
+            self.assertEqual(columns[-1], "arm wall-clock")
+            rows = {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")]
+                    for line in r.stdout.splitlines() if line.startswith(("| base |", "| faster |"))}
+            self.assertEqual(set(rows), {"base", "faster"})
+            # 16k steps never reach 90%: both are censored at the budget, a tie.
+            self.assertEqual(rows["base"][3], "0.02M")
+            self.assertEqual(rows["base"][4], "0.50")
+            self.assertEqual(rows["faster"][4], "0.50")
+            for row in rows.values():
+                self.assertEqual(len(row), len(columns))
+                self.assertTrue(row[-1].endswith(" s"), row)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,8 @@ import unittest
 ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 import deploy_test  # the manifests' services, as its tests read them (tests/, this script's folder)
-from imca_tools import binaries, options, plan
+from imca_tools import binaries, learner_presets, options, plan
+from imca_tools.options import dest
 
 # Flags that say where a process runs and how it is wired or supervised, not
 # what it trains: a deployment sets them for itself.
@@ -165,6 +166,30 @@ class ManifestsPassOnlyOverridesTest(unittest.TestCase):
 
     def test_kubernetes(self):
         self.check(deploy_test.k8s_services(deploy_test.load_k8s()[1]))
+
+
+class LearnerPresetTest(unittest.TestCase):
+    """--learner-preset: its options as if given first, the command line's
+    winning, every one recorded and resolved by the binaries as stated."""
+
+    def test_the_onpolicy_preset_reaches_the_binaries_and_the_record(self):
+        args = plan.parse_args(["--learner-preset", "onpolicy", "--lr", "0.002"])
+        flags, config = plan.plan(args)
+        self.assertEqual(config["learner_preset"], "onpolicy")
+        self.assertEqual(config["lr"], 0.002)  # The command line wins.
+        resolved = {program: config["resolved"][program] for program in ("learner", "actor")}
+        for flag, value in learner_presets.PRESETS["onpolicy"].items():
+            with self.subTest(flag=flag):
+                self.assertIn(dest(flag), args.given)
+                if flag == "--lr":
+                    continue
+                for program, binary_flag in PROGRAMS_OF[flag].items():
+                    if program not in resolved or binary_flag not in resolved[program]:
+                        continue  # The actor's print_config leaves out what the learner decides (algo).
+                    got = resolved[program][binary_flag]
+                    want = (value == "true") if isinstance(got, bool) else type(got)(value)
+                    self.assertEqual(got, want, f"{program} --{binary_flag}")
+        self.assertEqual(resolved["learner"]["lr"], 0.002)
 
 
 class LoadTimeEnvTest(unittest.TestCase):

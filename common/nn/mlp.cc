@@ -33,7 +33,7 @@ MlpImpl::MlpImpl(const MlpOptions& options) : options_(options) {
   TORCH_CHECK(sizes.size() >= 2, "an MLP needs an input and an output size");
   for (int64_t s : sizes) TORCH_CHECK(s >= 1, "MLP layer sizes must be >= 1");
   at::Generator generator = at::detail::createCPUGenerator(options.seed());
-  if (options.layer_norm()) {
+  if (options.layer_norm() && options.input_norm()) {
     input_norm_ = register_module(
         "input_norm", torch::nn::LayerNorm(torch::nn::LayerNormOptions({sizes[0]}).eps(kLayerNormEps)));
   }

@@ -26,9 +26,11 @@ struct MlpOptions {
   // biases start at 0.
   TORCH_ARG(double, hidden_gain) = std::sqrt(2.0);
   TORCH_ARG(double, last_gain) = std::sqrt(2.0);
-  // LayerNorm (eps 1e-5, weight 1, bias 0) on the input and after each
-  // hidden activation (on-policy's MLPBase with feature normalisation).
+  // LayerNorm (eps 1e-5, weight 1, bias 0) after each hidden activation (as
+  // on-policy's MLPLayer), and with input_norm on the input too (its
+  // MLPBase's feature normalisation).
   TORCH_ARG(bool, layer_norm) = false;
+  TORCH_ARG(bool, input_norm) = true;  // With layer_norm only.
   // The initial weights are drawn from a generator of their own seeded with
   // this, so building a network neither reads nor reseeds torch's global
   // generator's stream that other code relies on.
@@ -53,7 +55,7 @@ class MlpImpl : public torch::nn::Module {
   const MlpOptions& options() const { return options_; }
   std::vector<torch::nn::Linear>& layers() { return layers_; }
   const std::vector<torch::nn::Linear>& layers() const { return layers_; }
-  // Empty without layer_norm.
+  // Empty without layer_norm and input_norm.
   const torch::nn::LayerNorm& input_norm() const { return input_norm_; }
   const std::vector<torch::nn::LayerNorm>& norms() const { return norms_; }
 

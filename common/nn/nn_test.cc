@@ -82,6 +82,13 @@ TEST(MlpTest, LayerNormModulesAreNamedAsCheckpointsExpect) {
   EXPECT_EQ(names, (std::vector<std::string>{"input_norm.weight", "input_norm.bias", "0.weight", "0.bias",
                                              "norm0.weight", "norm0.bias", "1.weight", "1.bias", "norm1.weight",
                                              "norm1.bias", "2.weight", "2.bias"}));
+  // Without the input's LayerNorm: the hidden ones only.
+  Mlp hidden_only(MlpOptions({3, 4, 4, 2}).layer_norm(true).input_norm(false));
+  names.clear();
+  for (const auto& item : hidden_only->named_parameters()) names.push_back(item.key());
+  EXPECT_EQ(names, (std::vector<std::string>{"0.weight", "0.bias", "norm0.weight", "norm0.bias", "1.weight",
+                                             "1.bias", "norm1.weight", "norm1.bias", "2.weight", "2.bias"}));
+  EXPECT_TRUE(hidden_only->input_norm().is_empty());
 }
 
 TEST(SoftUpdateTest, MovesTauOfTheWayAndTauOneCopies) {

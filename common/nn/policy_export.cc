@@ -31,7 +31,7 @@ v1::Policy ExportPolicy(v1::Policy::Architecture architecture, int64_t version, 
   for (size_t k = 0; k < actors.size(); ++k) {
     const MlpImpl& actor = *actors[k];
     const std::string prefix = PolicyTensorPrefix(agent_networks, static_cast<int>(k));
-    if (layer_norm) {
+    if (layer_norm && !actor.input_norm().is_empty()) {
       AddTensor(InputNormTensorName(prefix, "weight"), actor.input_norm()->weight, &policy);
       AddTensor(InputNormTensorName(prefix, "bias"), actor.input_norm()->bias, &policy);
     }

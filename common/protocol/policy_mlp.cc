@@ -35,7 +35,9 @@ absl::StatusOr<PolicyMlp::Net> PolicyMlp::ReadNet(const v1::Policy& policy, cons
     return norm;
   };
   Net net;
-  if (layer_norm) {
+  // The input's LayerNorm is optional: a policy trained without it has none.
+  if (layer_norm && (by_name.count(InputNormTensorName(prefix, "weight")) > 0 ||
+                     by_name.count(InputNormTensorName(prefix, "bias")) > 0)) {
     absl::StatusOr<LayerNorm> norm =
         read_norm([&](const char* part) { return InputNormTensorName(prefix, part); }, policy.obs_dim());
     if (!norm.ok()) return norm.status();

@@ -50,7 +50,7 @@ class PolicyMlp {
   struct Net {
     std::vector<Matrix> weights;  // [out, in]
     std::vector<Eigen::RowVectorXf> biases;
-    // MLP_TANH_LAYERNORM only: on the input, and after each hidden tanh.
+    // MLP_TANH_LAYERNORM only: on the input (if the policy has it), and after each hidden tanh.
     std::optional<LayerNorm> input_norm;
     std::vector<LayerNorm> hidden_norms;  // Empty or one per hidden layer.
     Matrix normed_input;

@@ -59,8 +59,12 @@ class _Net:
         def layer_name(layer, part):
             return _core.layer_tensor_name(prefix, layer, part)
 
-        self.input_norm = (norm(lambda part: _core.input_norm_tensor_name(prefix, part), prefix + "input_norm",
-                                obs_dim) if layer_norm else None)
+        def input_norm_name(part):
+            return _core.input_norm_tensor_name(prefix, part)
+
+        # The input's LayerNorm is optional: a policy trained without it has none.
+        has_input_norm = layer_norm and any(input_norm_name(part) in tensors for part in ("weight", "bias"))
+        self.input_norm = norm(input_norm_name, prefix + "input_norm", obs_dim) if has_input_norm else None
         self.weights, self.biases, self.norms = [], [], []
         width, layer = obs_dim, 0
         while layer_name(layer, "weight") in tensors:

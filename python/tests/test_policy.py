@@ -66,6 +66,7 @@ def test_forward_pass_matches_the_cpp_evaluator(architecture, agent_networks, tm
 @pytest.mark.parametrize("flags, architecture, agent_networks", [
     ((), "mlp_tanh", 0),
     (("--layer_norm",), "mlp_tanh_layernorm", 0),
+    (("--layer_norm", "--input_norm=false"), "mlp_tanh_layernorm", 0),
     (("--algo=maddpg",), "mlp_relu", 0),
     (("--algo=maddpg", "--maddpg_share=false"), "mlp_relu", 2),
 ])

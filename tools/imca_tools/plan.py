@@ -9,7 +9,7 @@ import argparse
 import os
 import re
 
-from . import binaries, options, runs, supervisor
+from . import binaries, learner_presets, options, runs, supervisor
 from .options import dest
 
 
@@ -40,6 +40,10 @@ def parser(description=None):
     p.add_argument("--secure", action="store_true",
                    help="mutual TLS and a bearer token on every connection: a throwaway CA, certificates and "
                         "token are made in <run folder>/tls with openssl (docs/security.md)")
+    p.add_argument("--learner-preset", choices=learner_presets.names(), default=None,
+                   help="a named learner configuration, applied before the other options (which win over it) "
+                        "and recorded with them (tools/imca_tools/learner_presets.py; onpolicy: the reference "
+                        "MAPPO's, docs/learner.md)")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.add_argument("--actor-score-delays-ms", default="", metavar="MS,MS,...",
                    help="testing: actor i pauses the i-th value before each Score call, changing the order the "
@@ -75,7 +79,13 @@ def parse_args(argv, description=None):
     SystemExit(2) naming the flag on a bad one; `description` is --help's."""
     p = parser(description)
     known = binaries.facts()
-    args = p.parse_args(options.dashed(argv))
+    argv = options.dashed(argv)
+    preset = argparse.ArgumentParser(add_help=False)
+    preset.add_argument("--learner-preset", default=None)
+    name = preset.parse_known_args(argv)[0].learner_preset
+    if name in learner_presets.PRESETS:  # Else the real parser names the choices.
+        argv = learner_presets.argv(name) + argv
+    args = p.parse_args(argv)
     # What the user gave (or the resumed run recorded): the flags passed on.
     training = [flag for flag, _, _ in options.all_options(known)]
     args.given = sorted(dest(flag) for flag in training if getattr(args, dest(flag)) is not None)

@@ -22,6 +22,11 @@ std::vector<std::string> SettingChoices(CriticInput);
 bool AbslParseFlag(absl::string_view text, CriticInput* input, std::string* error);
 std::string AbslUnparseFlag(CriticInput input);
 
+// "batch" / "ema" (common/base/settings.h).
+std::vector<std::string> SettingChoices(ValueNorm);
+bool AbslParseFlag(absl::string_view text, ValueNorm* norm, std::string* error);
+std::string AbslUnparseFlag(ValueNorm norm);
+
 // PpoObjective's flag spelling, PpoObjectiveName's (common/base/settings.h).
 std::vector<std::string> SettingChoices(PpoObjective);
 bool AbslParseFlag(absl::string_view text, PpoObjective* objective, std::string* error);
@@ -54,20 +59,27 @@ struct MappoOptions {
   X(double, clip, ppo.clip, "PPO ratio clip")                                                                       \
   X(double, value_coef, ppo.value_coef, "weight of the value loss")                                                 \
   X(double, max_grad_norm, ppo.max_grad_norm, "gradient-norm clip (per optimiser)")                                 \
-  X(::imca::learner::PpoObjective, objective, ppo.objective,                                                                         \
+  X(::imca::learner::PpoObjective, objective, ppo.objective,                                                        \
     "what the PPO clip is measured against: behaviour (the actor's recorded policy) or decoupled (a proximal "      \
     "policy recomputed by the learner; behaviour only as importance weight)")                                       \
-  X(bool, layer_norm, ppo.layer_norm, "LayerNorm on the input and after every hidden layer (actor and critic)")     \
+  X(bool, layer_norm, ppo.layer_norm,                                                                               \
+    "LayerNorm after every hidden layer, and with --input_norm on the input (actor and critic)")                    \
+  X(bool, input_norm, ppo.input_norm,                                                                               \
+    "with --layer_norm, a LayerNorm on the input too; false: after the hidden layers only (on-policy's MLP without " \
+    "feature normalisation)")                                                                                       \
   X(int, value_heads, ppo.value_heads,                                                                              \
     "2: extrinsic and intrinsic value heads; 1: one head on extrinsic + intrinsic_coef * intrinsic (3: with "       \
     "--edti)")                                                                                                      \
   X(double, hidden_gain, ppo.hidden_gain, "orthogonal init gain of the hidden layers")                              \
   X(double, value_clip, ppo.value_clip,                                                                             \
-    "clip value predictions to this distance from the iteration's start (normalised; 0: off)")                     \
+    "clip value predictions to this distance from the iteration's start (normalised; 0: off)")                      \
   X(double, huber_delta, ppo.huber_delta, "Huber value loss delta (0: MSE)")                                        \
+  X(::imca::learner::ValueNorm, value_norm, ppo.value_norm,                                                         \
+    "the critic's return normalisers: batch (running moments of every return, merged per iteration) or ema "        \
+    "(on-policy's ValueNorm: debiased moving averages updated per minibatch)")                                      \
   X(bool, concurrent_critic, ppo.concurrent_critic,                                                                 \
     "run each minibatch's critic pass on a second thread, concurrently with the actor's (same result)")             \
-  X(::imca::learner::CriticInput, critic_input, critic_input,                                                                        \
+  X(::imca::learner::CriticInput, critic_input, critic_input,                                                       \
     "the centralised critic's input besides the agent id: state (global state) or joint_obs (all agents' "          \
     "observations)")                                                                                                \
   X(bool, edti, edti,                                                                                               \
@@ -76,7 +88,7 @@ struct MappoOptions {
   X(float, edti_tv, edti_coefficients.tv, "edti: coefficient of the transition term (EDTI's gamma_coor_tv)")        \
   X(float, edti_tv_ext, edti_coefficients.tv_ext, "edti: weight of the partner's extrinsic value (gamma_coor_tv_e)") \
   X(float, edti_tv_int, edti_coefficients.tv_int, "edti: weight of the partner's curiosity value (gamma_coor_tv_c)") \
-  X(float, edti_partner, edti_coefficients.partner, "edti: coefficient of the partner-reward term (gamma_coor_r)")   \
+  X(float, edti_partner, edti_coefficients.partner, "edti: coefficient of the partner-reward term (gamma_coor_r)")  \
   X(float, edti_partner_ext, edti_coefficients.partner_ext,                                                         \
     "edti: weight of the partner's extrinsic reward (gamma_coor_r_e)")                                              \
   X(float, edti_partner_int, edti_coefficients.partner_int,                                                         \

@@ -16,6 +16,7 @@ namespace {
 
 constexpr EnumName<CriticInput> kCriticInputNames[] = {{CriticInput::kState, "state"},
                                                        {CriticInput::kJointObs, "joint_obs"}};
+constexpr EnumName<ValueNorm> kValueNormNames[] = {{ValueNorm::kBatch, "batch"}, {ValueNorm::kEma, "ema"}};
 
 IMCA_SETTING_TABLE(Settings, MappoOptions, IMCA_MAPPO_SETTINGS)
 
@@ -64,6 +65,12 @@ bool AbslParseFlag(absl::string_view text, CriticInput* input, std::string* erro
   return ParseFlagName(text, kCriticInputNames, input, error);
 }
 std::string AbslUnparseFlag(CriticInput input) { return NameOf(input, kCriticInputNames); }
+
+std::vector<std::string> SettingChoices(ValueNorm) { return Names(kValueNormNames); }
+bool AbslParseFlag(absl::string_view text, ValueNorm* norm, std::string* error) {
+  return ParseFlagName(text, kValueNormNames, norm, error);
+}
+std::string AbslUnparseFlag(ValueNorm norm) { return NameOf(norm, kValueNormNames); }
 
 std::vector<std::string> SettingChoices(PpoObjective) { return PpoObjectiveNames(); }
 bool AbslParseFlag(absl::string_view text, PpoObjective* objective, std::string* error) {

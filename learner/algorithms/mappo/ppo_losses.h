@@ -5,9 +5,12 @@
 #include <torch/torch.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "common/nn/running_moments.h"
+#include "learner/algorithms/mappo/ppo_trainer.h"
 
 namespace imca::learner::internal {
 
@@ -47,14 +50,46 @@ torch::Tensor CopyFloats(const std::vector<float>& v, std::vector<int64_t> shape
 // Mean 0, std 1 (population std), in float64 for the statistics.
 torch::Tensor NormaliseAdvantages(const torch::Tensor& advantages);
 
-// Floor on the return normaliser's variance (std >= 0.01). Constant returns
-// (e.g. a sparse reward never seen yet) drive the variance to 0; dividing the
-// value targets by a vanishing std would blow up tiny differences.
+// Floor on the return normaliser's variance (std >= 0.01) with
+// ValueNorm::kBatch. Constant returns (e.g. a sparse reward never seen yet)
+// drive the variance to 0; dividing the value targets by a vanishing std
+// would blow up tiny differences.
 inline constexpr double kMinReturnVar = 1e-4;
-// The return normaliser's std, floored (kMinReturnVar).
-double ReturnStd(const nn::RunningMoments& norm);
-// Returns scaled by the normaliser: (r - mean) / ReturnStd.
-torch::Tensor NormaliseReturns(const std::vector<float>& returns, const nn::RunningMoments& norm);
+// ValueNorm::kEma's constants, on-policy's: the averages' decay per update,
+// the floor of the debiasing term, the floor of the variance (std >= 0.1).
+inline constexpr double kEmaBeta = 0.99999;
+inline constexpr double kEmaMinDebias = 1e-5;
+inline constexpr double kEmaMinVar = 1e-2;
+
+// One value head's return normaliser (ValueNorm). Update merges returns (a
+// whole batch with kBatch, a minibatch with kEma); Normalise and the
+// mean/std pair map between returns and the critic's outputs. Not
+// thread-safe.
+class ReturnNormaliser {
+ public:
+  explicit ReturnNormaliser(ValueNorm kind = ValueNorm::kBatch) : kind_(kind) {}
+
+  ValueNorm kind() const { return kind_; }
+  void Update(const torch::Tensor& returns);  // [rows], any float type.
+  double mean() const;
+  double std() const;
+  // (returns - mean) / std, float32.
+  torch::Tensor Normalise(const torch::Tensor& returns) const;
+
+  // float64 [3]: kBatch [mean, var, count], kEma [mean, mean square,
+  // debiasing term] (undebiased averages).
+  torch::Tensor ToTensor() const;
+  // Errors: INVALID_ARGUMENT naming `name` if the tensor is not [3] or its
+  // values are not a state of `kind` (non-finite, a negative variance or
+  // mean square, a count <= 0, a debiasing term outside [0, 1]).
+  static absl::StatusOr<ReturnNormaliser> FromTensor(ValueNorm kind, const torch::Tensor& t,
+                                                     const std::string& name);
+
+ private:
+  ValueNorm kind_;
+  nn::RunningMoments moments_;                           // kBatch
+  double ema_mean_ = 0, ema_mean_sq_ = 0, ema_debias_ = 0;  // kEma
+};
 
 }  // namespace imca::learner::internal
 

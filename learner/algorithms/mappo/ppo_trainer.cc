@@ -39,8 +39,7 @@ namespace {
 using internal::BehaviourKl;
 using internal::CopyFloats;
 using internal::NormaliseAdvantages;
-using internal::NormaliseReturns;
-using internal::ReturnStd;
+using internal::ReturnNormaliser;
 
 // A recorded log-probability may round slightly above 0 when p ~ 1.
 constexpr float kMaxLogProb = 1e-4f;
@@ -74,6 +73,7 @@ Model BuildModel(const PpoConfig& config, int obs_dim, int critic_dim, int num_a
                        .hidden_gain(config.hidden_gain)
                        .last_gain(last_gain)
                        .layer_norm(config.layer_norm)
+                       .input_norm(config.input_norm)
                        .seed(nn::SubSeed(config.seed, stream)));
   };
   model.actor = mlp(obs_dim, num_actions, /*last_gain=*/0.01, 1);
@@ -104,7 +104,9 @@ struct TrainData {
   // [B], the actor's before this iteration's updates (kDecoupled only).
   torch::Tensor start_log_probs;
   torch::Tensor advantages;           // [B]
-  torch::Tensor value_targets;        // [B, value_heads]
+  // [B, value_heads]: normalised with ValueNorm::kBatch; with kEma the raw
+  // returns, normalised per minibatch as its normaliser update goes.
+  torch::Tensor value_targets;
   torch::Tensor start_values;         // [B, value_heads], normalised; only with value_clip.
 };
 
@@ -172,10 +174,14 @@ absl::Status CheckSameShapes(const torch::nn::Module& expected, const torch::nn:
   return absl::OkStatus();
 }
 
-// [layer_norm, value_heads, number of optimisers]: what a checkpoint must
-// agree on beyond the sizes in "dims".
+// [layer norms, value_heads, number of optimisers, value normaliser]: what
+// a checkpoint must agree on beyond the sizes in "dims". Layer norms: 0
+// none, 1 on the input and after the hidden layers, 2 after the hidden
+// layers only; value normaliser: 0 kBatch, 1 kEma.
 std::vector<int64_t> Architecture(const PpoConfig& config) {
-  return {int64_t{config.layer_norm}, int64_t{config.value_heads}, config.separate_optimizers ? 2 : 1};
+  const int64_t norms = !config.layer_norm ? 0 : config.input_norm ? 1 : 2;
+  return {norms, int64_t{config.value_heads}, config.separate_optimizers ? 2 : 1,
+          config.value_norm == ValueNorm::kEma ? 1 : 0};
 }
 
 // The elements of an integer tensor of any shape.
@@ -192,6 +198,9 @@ struct PpoTrainer::Impl {
         obs_dim_(obs_dim),
         critic_dim_(critic_dim),
         num_actions_(num_actions),
+        ext_norm_(config.value_norm),
+        int_norm_(config.value_norm),
+        voi_norm_(config.value_norm),
         generator_(at::detail::createCPUGenerator(config.seed)) {
     model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
     if (config.concurrent_critic) {
@@ -214,9 +223,9 @@ struct PpoTrainer::Impl {
   const int critic_dim_;
   const int num_actions_;
   Model model_;
-  nn::RunningMoments ext_norm_;  // Returns of the extrinsic value head.
-  nn::RunningMoments int_norm_;  // Returns of the intrinsic value head.
-  nn::RunningMoments voi_norm_;  // Returns of the interaction head (value_heads 3).
+  ReturnNormaliser ext_norm_;  // Returns of the extrinsic value head.
+  ReturnNormaliser int_norm_;  // Returns of the intrinsic value head.
+  ReturnNormaliser voi_norm_;  // Returns of the interaction head (value_heads 3).
   at::Generator generator_;  // Minibatch shuffling only; saved in checkpoints.
   std::unique_ptr<SideThread> critic_thread_;  // With config.concurrent_critic.
 };
@@ -275,9 +284,14 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
   data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});
   data.advantages = NormaliseAdvantages(CopyFloats(batch.advantages, {b}));
   // One column per value head: extrinsic, intrinsic, interaction.
-  std::vector<torch::Tensor> targets = {NormaliseReturns(batch.returns_ext, ext_norm_)};
-  if (config_.value_heads >= 2) targets.push_back(NormaliseReturns(batch.returns_int, int_norm_));
-  if (config_.value_heads == 3) targets.push_back(NormaliseReturns(batch.returns_voi, voi_norm_));
+  const bool ema = config_.value_norm == ValueNorm::kEma;
+  const auto target = [&](const std::vector<float>& returns, const ReturnNormaliser& norm) {
+    const torch::Tensor r = CopyFloats(returns, {b});
+    return ema ? r : norm.Normalise(r);
+  };
+  std::vector<torch::Tensor> targets = {target(batch.returns_ext, ext_norm_)};
+  if (config_.value_heads >= 2) targets.push_back(target(batch.returns_int, int_norm_));
+  if (config_.value_heads == 3) targets.push_back(target(batch.returns_voi, voi_norm_));
   data.value_targets = torch::stack(targets, /*dim=*/1);
   // The networks as they are before this iteration's first update: the
   // proximal policy of the decoupled objective, and the anchor of value
@@ -294,9 +308,12 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
 
 absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
   Clock::time_point lap = Clock::now();
-  ext_norm_.Update(batch.returns_ext);
-  if (config_.value_heads >= 2) int_norm_.Update(batch.returns_int);
-  if (config_.value_heads == 3) voi_norm_.Update(batch.returns_voi);
+  if (config_.value_norm == ValueNorm::kBatch) {
+    const int64_t b = batch.size;
+    ext_norm_.Update(CopyFloats(batch.returns_ext, {b}));
+    if (config_.value_heads >= 2) int_norm_.Update(CopyFloats(batch.returns_int, {b}));
+    if (config_.value_heads == 3) voi_norm_.Update(CopyFloats(batch.returns_voi, {b}));
+  }
   const TrainData data = MakeTrainData(batch);
   const int64_t b = batch.size;
   // With fewer samples than minibatches, every minibatch holds one sample.
@@ -338,7 +355,19 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   torch::Tensor value_loss;
   const auto critic_forward = [&] {
     const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
-    const torch::Tensor targets = data.value_targets.index_select(0, indices);
+    torch::Tensor targets = data.value_targets.index_select(0, indices);
+    if (config_.value_norm == ValueNorm::kEma) {
+      // on-policy's order: each head's normaliser takes the minibatch's
+      // returns, then normalises them.
+      ReturnNormaliser* norms[] = {&ext_norm_, &int_norm_, &voi_norm_};
+      std::vector<torch::Tensor> columns;
+      for (int64_t h = 0; h < targets.size(1); ++h) {
+        const torch::Tensor returns = targets.select(1, h);
+        norms[h]->Update(returns);
+        columns.push_back(norms[h]->Normalise(returns));
+      }
+      targets = torch::stack(columns, /*dim=*/1);
+    }
     const auto error_loss = [&](const torch::Tensor& predictions) {
       return config_.huber_delta > 0
                  ? torch::huber_loss(predictions, targets, at::Reduction::None, config_.huber_delta)
@@ -445,12 +474,13 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
 }
 
 // Checkpoint layout: "dims" (int64 [obs_dim, critic_dim, num_actions,
-// hidden]), "architecture" (int64 [layer_norm, value_heads, optimizers];
-// absent in checkpoints from before these options: [0, 2, 1]), sub-archives
-// "actor", "critic", "optimizer" (and "optimizer_critic" with separate
-// optimisers), float64 [mean, var, count] tensors
-// "value_norm_ext"/"value_norm_int", and "generator" (the shuffling RNG
-// state).
+// hidden]), "architecture" (int64, Architecture(); absent in checkpoints
+// from before these options: [0, 2, 1], and without its fourth element from
+// before value_norm: 0), sub-archives "actor", "critic", "optimizer" (and
+// "optimizer_critic" with separate optimisers), the normalisers' float64 [3]
+// tensors (ReturnNormaliser::ToTensor) "value_norm_ext"/"value_norm_int"
+// (and "value_norm_voi" with three heads), and "generator" (the shuffling
+// RNG state).
 void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   archive.write(
       "dims",
@@ -489,16 +519,17 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
   }
   torch::Tensor architecture;
   // Checkpoints from before these options hold the original architecture.
-  const std::vector<int64_t> arch_have = archive.try_read("architecture", architecture)
-                                             ? Int64s(architecture)
-                                             : std::vector<int64_t>{0, 2, 1};
+  std::vector<int64_t> arch_have = archive.try_read("architecture", architecture)
+                                       ? Int64s(architecture)
+                                       : std::vector<int64_t>{0, 2, 1};
+  if (arch_have.size() == 3) arch_have.push_back(0);
   const std::vector<int64_t> arch_want = Architecture(config_);
   if (arch_have != arch_want) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "checkpoint ", path, " has (layer_norm, value_heads, optimizers) = (",
+        "checkpoint ", path, " has (layer norms, value_heads, optimizers, value_norm) = (",
         absl::StrJoin(arch_have, ", "), "), this trainer has (", absl::StrJoin(arch_want, ", "),
-        "); start the learner with the checkpoint's --layer_norm, --value_heads and "
-        "--separate_optimizers"));
+        "); start the learner with the checkpoint's --layer_norm and --input_norm, --value_heads, "
+        "--separate_optimizers and --value_norm"));
   }
   Model fresh = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
   torch::serialize::InputArchive actor;
@@ -522,15 +553,14 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
   archive.read("value_norm_ext", ext_tensor);
   archive.read("value_norm_int", int_tensor);
   archive.read("generator", generator_state);
-  IMCA_ASSIGN_OR_RETURN(nn::RunningMoments ext_norm,
-                        nn::RunningMoments::FromTensor(ext_tensor, 1, "value_norm_ext"));
-  IMCA_ASSIGN_OR_RETURN(nn::RunningMoments int_norm,
-                        nn::RunningMoments::FromTensor(int_tensor, 1, "value_norm_int"));
-  nn::RunningMoments voi_norm = voi_norm_;
+  const ValueNorm kind = config_.value_norm;
+  IMCA_ASSIGN_OR_RETURN(ReturnNormaliser ext_norm, ReturnNormaliser::FromTensor(kind, ext_tensor, "value_norm_ext"));
+  IMCA_ASSIGN_OR_RETURN(ReturnNormaliser int_norm, ReturnNormaliser::FromTensor(kind, int_tensor, "value_norm_int"));
+  ReturnNormaliser voi_norm = voi_norm_;
   if (config_.value_heads == 3) {
     torch::Tensor voi_tensor;
     archive.read("value_norm_voi", voi_tensor);
-    IMCA_ASSIGN_OR_RETURN(voi_norm, nn::RunningMoments::FromTensor(voi_tensor, 1, "value_norm_voi"));
+    IMCA_ASSIGN_OR_RETURN(voi_norm, ReturnNormaliser::FromTensor(kind, voi_tensor, "value_norm_voi"));
   }
   at::Generator generator = at::detail::createCPUGenerator();
   generator.set_state(generator_state);
@@ -610,9 +640,9 @@ absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float
                                              {batch, impl_->critic_dim_}, torch::kFloat32);
     const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
     const auto v = out.accessor<double, 2>();
-    const double ext_std = ReturnStd(impl_->ext_norm_), ext_mean = impl_->ext_norm_.scalar_mean();
-    const double int_std = ReturnStd(impl_->int_norm_), int_mean = impl_->int_norm_.scalar_mean();
-    const double voi_std = ReturnStd(impl_->voi_norm_), voi_mean = impl_->voi_norm_.scalar_mean();
+    const double ext_std = impl_->ext_norm_.std(), ext_mean = impl_->ext_norm_.mean();
+    const double int_std = impl_->int_norm_.std(), int_mean = impl_->int_norm_.mean();
+    const double voi_std = impl_->voi_norm_.std(), voi_mean = impl_->voi_norm_.mean();
     const int heads = impl_->config_.value_heads;
     for (int64_t i = 0; i < batch; ++i) {
       v_ext[i] = static_cast<float>(v[i][0] * ext_std + ext_mean);

@@ -29,6 +29,18 @@ enum class PpoObjective {
   kDecoupled,
 };
 
+// How the critic's targets are normalised (one normaliser per value head;
+// the critic predicts normalised returns, and Values denormalises them).
+enum class ValueNorm {
+  // Running mean and variance of every return seen, merged a whole
+  // iteration's batch at a time before it trains (Chan et al.), std >= 0.01.
+  kBatch,
+  // marlbenchmark/on-policy's ValueNorm: debiased exponential moving averages
+  // of the mean and the mean square (beta 0.99999), updated with each
+  // minibatch's returns just before its loss (every epoch), variance >= 0.01.
+  kEma,
+};
+
 // "behaviour" / "decoupled".
 std::string PpoObjectiveName(PpoObjective objective);
 std::vector<std::string> PpoObjectiveNames();
@@ -53,9 +65,12 @@ struct PpoConfig {
   // thread does both.
   bool concurrent_critic = true;
   PpoObjective objective = PpoObjective::kBehaviour;
-  // LayerNorm on the input and after every hidden activation, in actor and
-  // critic (marlbenchmark/on-policy's MLPBase with feature normalisation).
+  // LayerNorm after every hidden activation, in actor and critic (as every
+  // marlbenchmark/on-policy MLP), and with input_norm on the input too (its
+  // feature normalisation).
   bool layer_norm = false;
+  bool input_norm = true;  // With layer_norm only.
+  ValueNorm value_norm = ValueNorm::kBatch;
   // Two Adam optimisers (actor, critic), each with its own grad-norm clip at
   // max_grad_norm, as on-policy's R_MAPPO; false: one over both, one clip.
   // Which is better depends on the task (docs/benchmarks.md); ./imca train
@@ -159,14 +174,16 @@ class PpoTrainer {
 
   // The actor as named tensors, see learner_service.proto: architecture
   // MLP_TANH ("policy.<i>.weight"/"policy.<i>.bias"), or with layer_norm
-  // MLP_TANH_LAYERNORM (plus "policy.input_norm.*" and "policy.<i>.norm.*").
+  // MLP_TANH_LAYERNORM (plus "policy.<i>.norm.*", and "policy.input_norm.*"
+  // with input_norm).
   v1::Policy ExportPolicy(int64_t version) const;
 
   // Writes / reads actor, critic, optimiser state and return normalisers.
   // Errors: INTERNAL on I/O failure; Load: INVALID_ARGUMENT if the file's
-  // shapes or architecture (layer_norm, value_heads, separate_optimizers)
-  // do not match this trainer (a checkpoint without them is the original
-  // architecture: no layer norm, two heads, one optimiser).
+  // shapes or architecture (layer_norm and input_norm, value_heads,
+  // separate_optimizers, value_norm) do not match this trainer (a checkpoint
+  // without them is the original architecture: no layer norm, two heads, one
+  // optimiser, batch normalisers).
   absl::Status Save(const std::string& path) const;
   absl::Status Load(const std::string& path);
 

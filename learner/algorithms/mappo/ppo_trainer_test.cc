@@ -67,13 +67,14 @@ void LayerNorm(const std::map<std::string, const v1::NamedTensor*>& by_name,
 
 // An independent evaluator of an exported MLP_TANH or
 // MLP_TANH_LAYERNORM policy: tanh (and LayerNorm) after every layer but
-// the last, softmax on the last. Double precision.
+// the last, softmax on the last; the input's LayerNorm where the policy has
+// one. Double precision.
 std::vector<double> Probabilities(const v1::Policy& policy, const std::vector<float>& obs) {
   std::map<std::string, const v1::NamedTensor*> by_name;
   for (const v1::NamedTensor& t : policy.tensors()) by_name[t.name()] = &t;
   const bool layer_norm = policy.architecture() == v1::Policy::MLP_TANH_LAYERNORM;
   std::vector<double> x(obs.begin(), obs.end());
-  if (layer_norm) LayerNorm(by_name, "policy.input_norm", x);
+  if (layer_norm && by_name.count("policy.input_norm.weight") > 0) LayerNorm(by_name, "policy.input_norm", x);
   int layers = 0;
   while (by_name.count("policy." + std::to_string(layers) + ".weight") > 0) ++layers;
   for (int l = 0; l < layers; ++l) {
@@ -587,6 +588,12 @@ TEST_P(PpoVariantTest, LearnsTheBanditAndTheValues) {
 INSTANTIATE_TEST_SUITE_P(
     Options, PpoVariantTest,
     ::testing::Values(Variant{"LayerNorm", [](PpoConfig& c) { c.layer_norm = true; }},
+                      Variant{"HiddenLayerNormOnly",
+                              [](PpoConfig& c) {
+                                c.layer_norm = true;
+                                c.input_norm = false;
+                              }},
+                      Variant{"EmaValueNorm", [](PpoConfig& c) { c.value_norm = ValueNorm::kEma; }},
                       Variant{"SeparateOptimizers", [](PpoConfig& c) { c.separate_optimizers = true; }},
                       Variant{"OneValueHead", [](PpoConfig& c) { c.value_heads = 1; }},
                       Variant{"Decoupled", [](PpoConfig& c) { c.objective = PpoObjective::kDecoupled; }},
@@ -603,18 +610,32 @@ INSTANTIATE_TEST_SUITE_P(
                                 c.value_heads = 1;
                                 c.value_clip = 0.2;
                                 c.value_coef = 1.0;
+                              }},
+                      Variant{"OnPolicy",
+                              [](PpoConfig& c) {
+                                c.layer_norm = true;
+                                c.input_norm = false;
+                                c.value_norm = ValueNorm::kEma;
+                                c.separate_optimizers = true;
+                                c.value_heads = 1;
+                                c.value_coef = 1.0;
+                                c.hidden_gain = 5.0 / 3.0;
                               }}),
     [](const ::testing::TestParamInfo<Variant>& info) { return info.param.name; });
 
-TEST(PpoTrainerTest, ActorsEvaluateTheExportedLayerNormPolicyAsTheLearnerDoes) {
+void ActorsEvaluateTheExportedLayerNormPolicy(bool input_norm) {
   PpoConfig config = SmallConfig();
   config.layer_norm = true;
+  config.input_norm = input_norm;
   config.learning_rate = 3e-3;
   auto trainer = MakeTrainer(config, /*obs_dim=*/kContexts);
   ASSERT_NE(trainer, nullptr);
   std::mt19937 rng(4);
   for (int i = 0; i < 5; ++i) ASSERT_TRUE(trainer->Train(BanditBatch(*trainer, 64, rng)).ok());
   const v1::Policy policy = trainer->ExportPolicy(3);
+  EXPECT_EQ(std::count_if(policy.tensors().begin(), policy.tensors().end(),
+                          [](const v1::NamedTensor& t) { return t.name().rfind("policy.input_norm.", 0) == 0; }),
+            input_norm ? 2 : 0);
   auto mlp = PolicyMlp::FromProto(policy);
   ASSERT_TRUE(mlp.ok()) << mlp.status();
   std::uniform_real_distribution<float> uniform(-2.0f, 2.0f);
@@ -634,6 +655,14 @@ TEST(PpoTrainerTest, ActorsEvaluateTheExportedLayerNormPolicyAsTheLearnerDoes) {
   }
   EXPECT_THAT(std::string(PolicyMlp::FromProto(broken).status().message()), HasSubstr("policy.1.norm.bias"));
 }
+
+TEST(PpoTrainerTest, ActorsEvaluateTheExportedLayerNormPolicyAsTheLearnerDoes) {
+  for (bool input_norm : {true, false}) {
+    SCOPED_TRACE(input_norm ? "input and hidden LayerNorms" : "hidden LayerNorms only");
+    ActorsEvaluateTheExportedLayerNormPolicy(input_norm);
+  }
+}
+
 
 TEST(DecoupledSurrogateTest, ClipsAgainstTheProximalPolicyAndWeightsByBehaviour) {
   // r = pi / pi_prox:  2    1.1   0.5   0.5
@@ -702,12 +731,7 @@ TEST(PpoTrainerTest, DecoupledMeasuresTheClipFromThePolicyItStartsWith) {
   }
 }
 
-TEST(PpoTrainerTest, OptionsRoundTripThroughCheckpointsAndMismatchesAreRefused) {
-  PpoConfig config = SmallConfig();
-  config.learning_rate = 3e-3;
-  config.layer_norm = true;
-  config.separate_optimizers = true;
-  config.value_heads = 1;
+void OptionsRoundTripThroughCheckpoints(const PpoConfig& config) {
   auto original = MakeTrainer(config);
   ASSERT_NE(original, nullptr);
   std::mt19937 rng(9);
@@ -727,9 +751,13 @@ TEST(PpoTrainerTest, OptionsRoundTripThroughCheckpointsAndMismatchesAreRefused) 
   EXPECT_EQ(ContextValues(*restored), ContextValues(*original));
 
   for (const auto& [what, change] : std::vector<std::pair<std::string, std::function<void(PpoConfig&)>>>{
-           {"layer_norm", [](PpoConfig& c) { c.layer_norm = false; }},
-           {"value_heads", [](PpoConfig& c) { c.value_heads = 2; }},
-           {"optimizers", [](PpoConfig& c) { c.separate_optimizers = false; }}}) {
+           {"layer_norm", [](PpoConfig& c) { c.layer_norm = !c.layer_norm; }},
+           {"input_norm", [](PpoConfig& c) { c.input_norm = !c.input_norm; }},
+           {"value_heads", [](PpoConfig& c) { c.value_heads = 3 - c.value_heads; }},
+           {"optimizers", [](PpoConfig& c) { c.separate_optimizers = !c.separate_optimizers; }},
+           {"value_norm", [](PpoConfig& c) {
+              c.value_norm = c.value_norm == ValueNorm::kEma ? ValueNorm::kBatch : ValueNorm::kEma;
+            }}}) {
     PpoConfig other = config;
     change(other);
     auto mismatched = MakeTrainer(other);
@@ -737,10 +765,70 @@ TEST(PpoTrainerTest, OptionsRoundTripThroughCheckpointsAndMismatchesAreRefused) 
     const std::vector<float> before = AllWeights(mismatched->ExportPolicy(0));
     const absl::Status status = mismatched->Load(path);
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << what << ": " << status;
-    EXPECT_THAT(std::string(status.message()), HasSubstr("layer_norm, value_heads, optimizers")) << what;
+    EXPECT_THAT(std::string(status.message()), HasSubstr("(layer norms, value_heads, optimizers, value_norm)"))
+        << what;
     EXPECT_EQ(AllWeights(mismatched->ExportPolicy(0)), before) << what;
   }
   std::remove(path.c_str());
+}
+
+TEST(PpoTrainerTest, OptionsRoundTripThroughCheckpointsAndMismatchesAreRefused) {
+  PpoConfig config = SmallConfig();
+  config.learning_rate = 3e-3;
+  config.layer_norm = true;
+  config.separate_optimizers = true;
+  config.value_heads = 1;
+  {
+    SCOPED_TRACE("input and hidden LayerNorms, batch normalisers");
+    OptionsRoundTripThroughCheckpoints(config);
+  }
+  config.input_norm = false;
+  config.value_norm = ValueNorm::kEma;
+  config.value_heads = 2;
+  {
+    SCOPED_TRACE("hidden LayerNorms only, moving-average normalisers");
+    OptionsRoundTripThroughCheckpoints(config);
+  }
+}
+
+// on-policy's ValueNorm worked by hand: beta = 0.99999, debiased averages,
+// variance floored at 0.01; the batch normaliser's std floored at 0.01.
+TEST(ReturnNormaliserTest, MovingAveragesAsOnPolicyAndFloorsAsDocumented) {
+  using internal::ReturnNormaliser;
+  ReturnNormaliser ema(ValueNorm::kEma);
+  EXPECT_DOUBLE_EQ(ema.mean(), 0.0);
+  EXPECT_NEAR(ema.std(), 0.1, 1e-12);  // Nothing seen: the floor.
+  ema.Update(torch::tensor({1.0f, 3.0f}));
+  // Averages 2e-5 and 5e-5 over a debiasing term of 1e-5: mean 2, var 5 - 4.
+  EXPECT_NEAR(ema.mean(), 2.0, 1e-9);
+  EXPECT_NEAR(ema.std(), 1.0, 1e-9);
+  ema.Update(torch::tensor({0.0f, 0.0f}));
+  const double beta = internal::kEmaBeta;
+  const double mean = 2 * beta / (1 + beta), var = 5 * beta / (1 + beta) - mean * mean;
+  EXPECT_NEAR(ema.mean(), mean, 1e-9);
+  EXPECT_NEAR(ema.std(), std::sqrt(var), 1e-9);
+  EXPECT_TRUE(torch::allclose(ema.Normalise(torch::tensor({1.0f})), torch::tensor({(1 - mean) / std::sqrt(var)})));
+
+  // A checkpoint's tensor restores the state; one that is no such state is refused.
+  auto restored = ReturnNormaliser::FromTensor(ValueNorm::kEma, ema.ToTensor(), "value_norm_ext");
+  ASSERT_TRUE(restored.ok()) << restored.status();
+  EXPECT_EQ(restored->mean(), ema.mean());
+  EXPECT_EQ(restored->std(), ema.std());
+  const auto bad = ReturnNormaliser::FromTensor(ValueNorm::kEma, torch::tensor({0.0, 1.0, 2.0}, torch::kFloat64),
+                                                "value_norm_int");
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(bad.status().message()), HasSubstr("value_norm_int"));
+
+  // Constant returns: the moving average's std stays at 0.1, the batch one's at 0.01.
+  ReturnNormaliser constant_ema(ValueNorm::kEma), constant_batch(ValueNorm::kBatch);
+  for (int i = 0; i < 3; ++i) {
+    constant_ema.Update(torch::full({64}, 2.0f));
+    constant_batch.Update(torch::full({64}, 2.0f));
+  }
+  EXPECT_NEAR(constant_ema.mean(), 2.0, 1e-9);
+  EXPECT_NEAR(constant_ema.std(), 0.1, 1e-9);
+  EXPECT_NEAR(constant_batch.mean(), 2.0, 1e-5);
+  EXPECT_NEAR(constant_batch.std(), 0.01, 1e-9);
 }
 
 TEST(PpoTrainerTest, CreateRejectsBadOptions) {
