@@ -12,6 +12,7 @@ deploy/, or changed in one home only, fails here.
 import json
 import os
 import subprocess
+import sys
 import time
 import unittest
 
@@ -197,18 +198,21 @@ class LoadTimeEnvTest(unittest.TestCase):
     the build, given by the tools to every binary they start, and set by a
     binary started without it."""
 
-    def chosen(self):
-        with open(os.path.join(binaries.BIN, "load_time_env")) as f:
-            return dict(entry.split("=", 1) for entry in f.read().split())
-
     def test_the_tools_give_it_to_their_children(self):
-        chosen = self.chosen()
+        chosen = binaries.load_time_env()
         self.assertIn("OMP_WAIT_POLICY", chosen)
+        # A tool started without it (ctest sets it for this test) gives it to the binaries it starts.
+        env = {k: v for k, v in binaries.module_env().items() if k not in chosen}
+        probe = ("import subprocess; from imca_tools import binaries; "
+                 "print(subprocess.run(['env'], capture_output=True, text=True).stdout)")
+        r = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        child = dict(line.split("=", 1) for line in r.stdout.splitlines() if "=" in line)
         for name, value in chosen.items():
-            self.assertEqual(os.environ.get(name), value, name)
+            self.assertEqual(child.get(name), value, name)
 
     def test_a_binary_started_without_it_sets_it_itself(self):
-        chosen = self.chosen()
+        chosen = binaries.load_time_env()
         env = {k: v for k, v in os.environ.items() if k not in chosen}
         proc = subprocess.Popen([os.path.join(BIN, "reward_server"), "--listen=127.0.0.1:0"], env=env,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

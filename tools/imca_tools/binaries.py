@@ -18,25 +18,22 @@ ROOT = os.environ.get("IMCA_ROOT", os.path.dirname(os.path.dirname(os.path.dirna
 BIN = os.environ.get("IMCA_BIN", os.path.join(ROOT, "build", "bin"))
 
 
-def _use_load_time_env():
-    """Gives this process's environment the binaries' load-time variables
-    (BIN/load_time_env, which the build writes: OMP_WAIT_POLICY) where they
-    are unset, so that every binary a tool starts has them from its start:
-    one started without re-executes itself to set them, loading LibTorch
-    twice (common/base/load_time_env.h). Before a build there is no file and
-    nothing to give."""
+def load_time_env():
+    """{name: value} of the binaries' load-time variables (BIN/load_time_env,
+    which the build writes: OMP_WAIT_POLICY); {} before a build."""
     try:
         with open(os.path.join(BIN, "load_time_env")) as f:
             entries = f.read().split()
     except OSError:
-        return
-    for entry in entries:
-        name, sep, value = entry.partition("=")
-        if sep and name:
-            os.environ.setdefault(name, value)
+        return {}
+    return {name: value for name, sep, value in (e.partition("=") for e in entries) if sep and name}
 
 
-_use_load_time_env()
+# This process's environment gets them where unset, so that every binary a
+# tool starts has them from its start: one started without re-executes
+# itself to set them, loading LibTorch twice (common/base/load_time_env.h).
+for _name, _value in load_time_env().items():
+    os.environ.setdefault(_name, _value)
 
 # The three services of a run, in start order.
 PROGRAMS = ("reward_server", "learner", "actor")

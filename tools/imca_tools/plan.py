@@ -80,12 +80,9 @@ def parse_args(argv, description=None):
     p = parser(description)
     known = binaries.facts()
     argv = options.dashed(argv)
-    preset = argparse.ArgumentParser(add_help=False)
-    preset.add_argument("--learner-preset", default=None)
-    name = preset.parse_known_args(argv)[0].learner_preset
-    if name in learner_presets.PRESETS:  # Else the real parser names the choices.
-        argv = learner_presets.argv(name) + argv
     args = p.parse_args(argv)
+    if args.learner_preset:  # Its options first: the command line's, later, win.
+        args = p.parse_args(learner_presets.argv(args.learner_preset) + argv)
     # What the user gave (or the resumed run recorded): the flags passed on.
     training = [flag for flag, _, _ in options.all_options(known)]
     args.given = sorted(dest(flag) for flag in training if getattr(args, dest(flag)) is not None)

@@ -97,15 +97,10 @@ class DoorRooms final : public Scenario {
 // map must hold besides doors ("" or the problem).
 absl::Status AddDoorRooms(ScenarioRegistry* registry, std::string name, const DoorRules& rules,
                           std::string (*needs)(const GridMap& map)) {
-  return registry->Add({name, 2,
-                        [needs](const GridMap& m) {
-                          const std::string problem = needs(m);
-                          return problem.empty() ? NeedDoors(m) : problem;
-                        },
-                        [name, rules](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
-                          return std::make_unique<DoorRooms>(name, rules, std::move(m), c, n);
-                        },
-                        /*tuning=*/{}});
+  return registry->Add(MakeRulesEntry<DoorRooms>(std::move(name), rules, 2, [needs](const GridMap& m) {
+    const std::string problem = needs(m);
+    return problem.empty() ? NeedDoors(m) : problem;
+  }));
 }
 
 }  // namespace

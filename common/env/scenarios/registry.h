@@ -4,6 +4,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include "absl/status/status.h"
 #include "common/base/registry.h"
@@ -48,6 +49,19 @@ ScenarioEntry MakeScenarioEntry(std::string name, int default_agents,
   return {std::move(name), default_agents, std::move(check),
           [](GridMap map, const ScenarioConfig& config, int n) -> std::unique_ptr<Scenario> {
             return std::make_unique<T>(std::move(map), config, n);
+          },
+          tuning};
+}
+
+// The entry of a scenario class T whose rules are data, so that one class
+// serves several entries: constructed as T(name, rules, map, config,
+// num_agents).
+template <typename T, typename Rules>
+ScenarioEntry MakeRulesEntry(std::string name, const Rules& rules, int default_agents,
+                             std::function<std::string(const GridMap& map)> check, ScenarioTuning tuning = {}) {
+  return {name, default_agents, std::move(check),
+          [name, rules](GridMap map, const ScenarioConfig& config, int n) -> std::unique_ptr<Scenario> {
+            return std::make_unique<T>(name, rules, std::move(map), config, n);
           },
           tuning};
 }

@@ -90,11 +90,7 @@ class SwitchRooms final : public Scenario {
 // "The task versions of CMAE and MACE"), its layout the map's.
 absl::Status AddSwitchRooms(ScenarioRegistry* registry, std::string name, SwitchRoomRules rules, int agents,
                             ScenarioTuning tuning = {}) {
-  return registry->Add({name, agents, NeedDoors,
-                        [name, rules](GridMap m, const ScenarioConfig& c, int n) -> std::unique_ptr<Scenario> {
-                          return std::make_unique<SwitchRooms>(name, rules, std::move(m), c, n);
-                        },
-                        tuning});
+  return registry->Add(MakeRulesEntry<SwitchRooms>(std::move(name), rules, agents, NeedDoors, tuning));
 }
 
 }  // namespace

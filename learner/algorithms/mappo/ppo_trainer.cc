@@ -1,6 +1,7 @@
 #include "learner/algorithms/mappo/ppo_trainer.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -184,6 +185,11 @@ std::vector<int64_t> Architecture(const PpoConfig& config) {
           config.value_norm == ValueNorm::kEma ? 1 : 0};
 }
 
+// The checkpoint names of the value heads' normalisers (extrinsic,
+// intrinsic, interaction), in head order. The first two are always written.
+constexpr const char* kNormaliserNames[] = {"value_norm_ext", "value_norm_int", "value_norm_voi"};
+constexpr int kMaxValueHeads = 3;
+
 // The elements of an integer tensor of any shape.
 std::vector<int64_t> Int64s(const torch::Tensor& t) {
   const torch::Tensor c = t.to(torch::kInt64).flatten().contiguous();
@@ -198,9 +204,8 @@ struct PpoTrainer::Impl {
         obs_dim_(obs_dim),
         critic_dim_(critic_dim),
         num_actions_(num_actions),
-        ext_norm_(config.value_norm),
-        int_norm_(config.value_norm),
-        voi_norm_(config.value_norm),
+        norms_{ReturnNormaliser(config.value_norm), ReturnNormaliser(config.value_norm),
+               ReturnNormaliser(config.value_norm)},
         generator_(at::detail::createCPUGenerator(config.seed)) {
     model_ = BuildModel(config_, obs_dim_, critic_dim_, num_actions_);
     if (config.concurrent_critic) {
@@ -223,9 +228,17 @@ struct PpoTrainer::Impl {
   const int critic_dim_;
   const int num_actions_;
   Model model_;
-  ReturnNormaliser ext_norm_;  // Returns of the extrinsic value head.
-  ReturnNormaliser int_norm_;  // Returns of the intrinsic value head.
-  ReturnNormaliser voi_norm_;  // Returns of the interaction head (value_heads 3).
+  // Normalised returns [rows, value_heads] from raw ones, each head's
+  // normaliser taking its column first: a whole batch once per iteration
+  // (ValueNorm::kBatch) or each minibatch of every epoch (kEma, as on-policy).
+  torch::Tensor TakeAndNormalise(const torch::Tensor& returns);
+  // The checkpoint tensors this trainer writes and reads: the extrinsic and
+  // intrinsic heads' always, the interaction head's with three heads.
+  int StoredNormalisers() const { return std::max(2, config_.value_heads); }
+
+  // One per value head, in head order (kNormaliserNames); the unused ones
+  // stay as they started.
+  std::array<ReturnNormaliser, kMaxValueHeads> norms_;
   at::Generator generator_;  // Minibatch shuffling only; saved in checkpoints.
   std::unique_ptr<SideThread> critic_thread_;  // With config.concurrent_critic.
 };
@@ -270,7 +283,6 @@ absl::Status PpoTrainer::Impl::ValidateBatch(const PpoBatch& batch) const {
   return absl::OkStatus();
 }
 
-// Call after the normalisers have seen this batch's returns.
 TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
   const int64_t b = batch.size;
   TrainData data;
@@ -284,15 +296,13 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
   data.behaviour_log_probs = CopyFloats(batch.behaviour_log_probs, {b});
   data.advantages = NormaliseAdvantages(CopyFloats(batch.advantages, {b}));
   // One column per value head: extrinsic, intrinsic, interaction.
-  const bool ema = config_.value_norm == ValueNorm::kEma;
-  const auto target = [&](const std::vector<float>& returns, const ReturnNormaliser& norm) {
-    const torch::Tensor r = CopyFloats(returns, {b});
-    return ema ? r : norm.Normalise(r);
-  };
-  std::vector<torch::Tensor> targets = {target(batch.returns_ext, ext_norm_)};
-  if (config_.value_heads >= 2) targets.push_back(target(batch.returns_int, int_norm_));
-  if (config_.value_heads == 3) targets.push_back(target(batch.returns_voi, voi_norm_));
-  data.value_targets = torch::stack(targets, /*dim=*/1);
+  const std::vector<float>* returns[] = {&batch.returns_ext, &batch.returns_int, &batch.returns_voi};
+  std::vector<torch::Tensor> columns;
+  for (int h = 0; h < config_.value_heads; ++h) {
+    columns.push_back(torch::from_blob(const_cast<float*>(returns[h]->data()), {b}, torch::kFloat32));
+  }
+  data.value_targets = torch::stack(columns, /*dim=*/1);  // A copy.
+  if (config_.value_norm == ValueNorm::kBatch) data.value_targets = TakeAndNormalise(data.value_targets);
   // The networks as they are before this iteration's first update: the
   // proximal policy of the decoupled objective, and the anchor of value
   // clipping.
@@ -306,14 +316,18 @@ TrainData PpoTrainer::Impl::MakeTrainData(const PpoBatch& batch) {
   return data;
 }
 
+torch::Tensor PpoTrainer::Impl::TakeAndNormalise(const torch::Tensor& returns) {
+  std::vector<torch::Tensor> columns;
+  for (int64_t h = 0; h < returns.size(1); ++h) {
+    const torch::Tensor column = returns.select(1, h);
+    norms_[h].Update(column);
+    columns.push_back(norms_[h].Normalise(column));
+  }
+  return torch::stack(columns, /*dim=*/1);
+}
+
 absl::StatusOr<PpoStats> PpoTrainer::Impl::Train(const PpoBatch& batch) {
   Clock::time_point lap = Clock::now();
-  if (config_.value_norm == ValueNorm::kBatch) {
-    const int64_t b = batch.size;
-    ext_norm_.Update(CopyFloats(batch.returns_ext, {b}));
-    if (config_.value_heads >= 2) int_norm_.Update(CopyFloats(batch.returns_int, {b}));
-    if (config_.value_heads == 3) voi_norm_.Update(CopyFloats(batch.returns_voi, {b}));
-  }
   const TrainData data = MakeTrainData(batch);
   const int64_t b = batch.size;
   // With fewer samples than minibatches, every minibatch holds one sample.
@@ -356,18 +370,7 @@ absl::Status PpoTrainer::Impl::TrainMinibatch(const TrainData& data, const torch
   const auto critic_forward = [&] {
     const torch::Tensor values = model_.critic->forward(data.critic_inputs.index_select(0, indices));
     torch::Tensor targets = data.value_targets.index_select(0, indices);
-    if (config_.value_norm == ValueNorm::kEma) {
-      // on-policy's order: each head's normaliser takes the minibatch's
-      // returns, then normalises them.
-      ReturnNormaliser* norms[] = {&ext_norm_, &int_norm_, &voi_norm_};
-      std::vector<torch::Tensor> columns;
-      for (int64_t h = 0; h < targets.size(1); ++h) {
-        const torch::Tensor returns = targets.select(1, h);
-        norms[h]->Update(returns);
-        columns.push_back(norms[h]->Normalise(returns));
-      }
-      targets = torch::stack(columns, /*dim=*/1);
-    }
+    if (config_.value_norm == ValueNorm::kEma) targets = TakeAndNormalise(targets);
     const auto error_loss = [&](const torch::Tensor& predictions) {
       return config_.huber_delta > 0
                  ? torch::huber_loss(predictions, targets, at::Reduction::None, config_.huber_delta)
@@ -497,9 +500,7 @@ void PpoTrainer::Impl::WriteTo(torch::serialize::OutputArchive& archive) const {
   for (size_t i = 0; i < model_.optimizers.size(); ++i) {
     nn::WriteAdam(archive, i == 0 ? "optimizer" : "optimizer_critic", *model_.optimizers[i]);
   }
-  archive.write("value_norm_ext", ext_norm_.ToTensor());
-  archive.write("value_norm_int", int_norm_.ToTensor());
-  if (config_.value_heads == 3) archive.write("value_norm_voi", voi_norm_.ToTensor());
+  for (int h = 0; h < StoredNormalisers(); ++h) archive.write(kNormaliserNames[h], norms_[h].ToTensor());
   archive.write("generator", generator_.get_state());
 }
 
@@ -549,26 +550,19 @@ absl::Status PpoTrainer::Impl::ReadFrom(torch::serialize::InputArchive& archive,
     }
   }
 
-  torch::Tensor ext_tensor, int_tensor, generator_state;
-  archive.read("value_norm_ext", ext_tensor);
-  archive.read("value_norm_int", int_tensor);
-  archive.read("generator", generator_state);
-  const ValueNorm kind = config_.value_norm;
-  IMCA_ASSIGN_OR_RETURN(ReturnNormaliser ext_norm, ReturnNormaliser::FromTensor(kind, ext_tensor, "value_norm_ext"));
-  IMCA_ASSIGN_OR_RETURN(ReturnNormaliser int_norm, ReturnNormaliser::FromTensor(kind, int_tensor, "value_norm_int"));
-  ReturnNormaliser voi_norm = voi_norm_;
-  if (config_.value_heads == 3) {
-    torch::Tensor voi_tensor;
-    archive.read("value_norm_voi", voi_tensor);
-    IMCA_ASSIGN_OR_RETURN(voi_norm, ReturnNormaliser::FromTensor(kind, voi_tensor, "value_norm_voi"));
+  std::array<ReturnNormaliser, kMaxValueHeads> norms = norms_;
+  for (int h = 0; h < StoredNormalisers(); ++h) {
+    torch::Tensor tensor;
+    archive.read(kNormaliserNames[h], tensor);
+    IMCA_ASSIGN_OR_RETURN(norms[h], ReturnNormaliser::FromTensor(config_.value_norm, tensor, kNormaliserNames[h]));
   }
+  torch::Tensor generator_state;
+  archive.read("generator", generator_state);
   at::Generator generator = at::detail::createCPUGenerator();
   generator.set_state(generator_state);
 
   model_ = std::move(fresh);
-  ext_norm_ = ext_norm;
-  int_norm_ = int_norm;
-  voi_norm_ = voi_norm;
+  norms_ = norms;
   generator_ = std::move(generator);
   return absl::OkStatus();
 }
@@ -640,14 +634,15 @@ absl::Status PpoTrainer::Values(const float* critic_inputs, int64_t batch, float
                                              {batch, impl_->critic_dim_}, torch::kFloat32);
     const torch::Tensor out = impl_->model_.critic->forward(x).to(torch::kFloat64).contiguous();
     const auto v = out.accessor<double, 2>();
-    const double ext_std = impl_->ext_norm_.std(), ext_mean = impl_->ext_norm_.mean();
-    const double int_std = impl_->int_norm_.std(), int_mean = impl_->int_norm_.mean();
-    const double voi_std = impl_->voi_norm_.std(), voi_mean = impl_->voi_norm_.mean();
-    const int heads = impl_->config_.value_heads;
-    for (int64_t i = 0; i < batch; ++i) {
-      v_ext[i] = static_cast<float>(v[i][0] * ext_std + ext_mean);
-      v_int[i] = heads >= 2 ? static_cast<float>(v[i][1] * int_std + int_mean) : 0.0f;
-      if (v_voi != nullptr) v_voi[i] = heads == 3 ? static_cast<float>(v[i][2] * voi_std + voi_mean) : 0.0f;
+    float* outputs[] = {v_ext, v_int, v_voi};
+    for (int h = 0; h < kMaxValueHeads; ++h) {
+      if (outputs[h] == nullptr) continue;
+      if (h >= impl_->config_.value_heads) {
+        std::fill(outputs[h], outputs[h] + batch, 0.0f);
+        continue;
+      }
+      const double std = impl_->norms_[h].std(), mean = impl_->norms_[h].mean();
+      for (int64_t i = 0; i < batch; ++i) outputs[h][i] = static_cast<float>(v[i][h] * std + mean);
     }
   });
 }

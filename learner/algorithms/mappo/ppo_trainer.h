@@ -159,7 +159,8 @@ class PpoTrainer {
   absl::Status Values(const float* critic_inputs, int64_t batch, float* v_ext, float* v_int,
                       float* v_voi = nullptr);
 
-  // Updates the return normalisers with the batch's returns, normalises the
+  // Updates the return normalisers with the batch's returns (per batch or
+  // per minibatch: PpoConfig::value_norm), normalises the
   // advantages (mean 0, std 1), then runs `epochs` passes over `minibatches`
   // shuffled minibatches: clipped surrogate (PpoConfig::objective), value
   // loss on normalised targets, entropy bonus, grad-norm clipping. With one

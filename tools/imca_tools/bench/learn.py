@@ -62,12 +62,10 @@ def ablation_table(args, variants, modes, seeds, results):
           "| wall-clock to 90%: median | env steps to 90%, evaluation: median | final success | env steps/s "
           "| arm wall-clock |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    censored = {}
-    for name, _ in variants:
-        for credit in modes:
-            trials = [results[(name, credit, s)] for s in seeds]
-            censored[(name, credit)] = stats.steps_or_budget([to_90(rows, "train_success_rate")[0] for _, rows in trials],
-                                                             args.steps)
+    def steps_to_90(name, credit):  # Per seed, a seed that never got there at the budget.
+        return stats.steps_or_budget([to_90(results[(name, credit, s)][1], "train_success_rate")[0] for s in seeds],
+                                     args.steps)
+
     for name, _ in variants:
         for credit in modes:
             trials = [results[(name, credit, s)] for s in seeds]
@@ -75,8 +73,8 @@ def ablation_table(args, variants, modes, seeds, results):
             evals = [to_90(rows, "success_rate")[0] for _, rows in trials]
             reached = sum(1 for steps, _ in train if steps is not None)
             wall = median_reached([w for _, w in train])
-            mine, theirs = censored[(name, credit)], censored[(first, credit)]
-            sooner = stats.probability_of_improvement([[-x for x in mine]], [[-x for x in theirs]])
+            mine = steps_to_90(name, credit)
+            sooner = stats.probability_of_improvement([[-x for x in mine]], [[-x for x in steps_to_90(first, credit)]])
             print(f"| {name} | {credit} | {millions(median_reached([x for x, _ in train]))} "
                   f"({' / '.join(millions(x) for x, _ in train)}) | {millions(stats.iqm(mine))} | {sooner:.2f} "
                   f"| {reached}/{len(seeds)} "
