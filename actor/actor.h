@@ -28,13 +28,19 @@ namespace imca::actor {
 
 struct ActorConfig {
   std::string actor_id = "actor-0";
-  int num_envs = 32;         // E training envs.
-  int unroll_length = 16;    // T steps per unroll (coop_nav: 32; env::TuningOf).
-  // Envs run with the same policy but never trained on. 200 evaluation
-  // episodes (the learner's success window) span about 25k joint training
-  // steps of coop_nav with 2 actors x 32 envs at 16, and 190k at 2
-  // (docs/learner.md, "Success rate").
-  int eval_envs = 16;
+  // E training envs of T steps per unroll: with the learner's synchronous
+  // defaults each env's whole share of an iteration is one unroll (2 actors x
+  // 16 envs x 32 steps = 1024; coop_nav's 2048 in 64-step unrolls,
+  // env::TuningOf). Fewer envs running longer between updates learn more per
+  // sample than more envs of shorter unrolls (docs/learner.md, "Defaults").
+  int num_envs = 16;
+  int unroll_length = 32;
+  // Envs run with the same policy but never trained on: half the training
+  // envs, so that they cost a third of the stepping. 200 evaluation episodes
+  // (the learner's success window) span about 25k joint training steps of
+  // coop_nav with 2 actors x 16 envs at 8, and 190k at 1 (docs/learner.md,
+  // "Success rate").
+  int eval_envs = 8;
   uint64_t seed = 1;
   std::chrono::milliseconds rpc_timeout{10000};
   int unrolls_per_stream = 256;  // PushUnrolls streams are reopened after this many.

@@ -114,8 +114,11 @@ class OneHomeTest(unittest.TestCase):
         pp = print_config("learner", ["--scenario=predator_prey"])
         self.assertEqual((pp["batch_steps"], pp["separate_optimizers"], pp["lr"]), (1024, False, 5e-4))
         self.assertFalse(print_config("learner", ["--algo=maddpg"])["synchronous"])
-        self.assertEqual(print_config("actor", ["--scenario=coop_nav"])["unroll_length"], 32)
-        self.assertEqual(print_config("actor", ["--scenario=pass"])["unroll_length"], 16)
+        # Each env's share of a synchronous iteration is one unroll: 2 actors x 16 envs x 64 = 2048, x 32 = 1024.
+        coop_actor, pass_actor = (print_config("actor", [f"--scenario={s}"]) for s in ("coop_nav", "pass"))
+        self.assertEqual((coop_actor["envs"], coop_actor["unroll_length"]), (16, 64))
+        self.assertEqual((pass_actor["envs"], pass_actor["unroll_length"]), (16, 32))
+        self.assertEqual(print_config("actor", ["--algo=cmae"])["envs"], 1)
         self.assertEqual(print_config("reward_server", [])["beta"], 0.5)
         self.assertEqual(print_config("reward_server", ["--reward=edti"])["credit"], "independent")
         # CMAE's tasks pay +1 where EDTI's pay +1000: every kind's beta at a thousandth (count and edti
@@ -153,14 +156,24 @@ class ManifestsPassOnlyOverridesTest(unittest.TestCase):
 
     def check_actor_count(self, services):
         """A synchronous learner waits for the shares of --actors actors: as
-        many as the deployment runs."""
+        many as the deployment runs, each share a whole number of the
+        actors' unrolls (else the learner refuses them at the first policy)."""
         by_binary = deploy_test.by_binary(services)
-        learner = by_binary["learner"]
-        resolved = print_config("learner", [a for a in learner.args if a[2:].partition("=")[0] not in
-                                            WIRING["learner"] | COMMON_WIRING])
+        learner, actor = by_binary["learner"], by_binary["actor"]
+
+        def settings(service):
+            return print_config(service.binary, [a for a in service.args if a[2:].partition("=")[0] not in
+                                                 WIRING[service.binary] | COMMON_WIRING])
+
+        resolved = settings(learner)
         if resolved["synchronous"]:
-            self.assertEqual(resolved["actors"], by_binary["actor"].replicas,
+            self.assertEqual(resolved["actors"], actor.replicas,
                              "the learner's --actors is not the number of actor replicas")
+            acting = settings(actor)
+            unroll = acting["envs"] * acting["unroll_length"]
+            self.assertEqual(resolved["batch_steps"] % (resolved["actors"] * unroll), 0,
+                             f"each actor's share of the {resolved['batch_steps']}-step batch is not a whole number "
+                             f"of its unrolls ({acting['envs']} envs x {acting['unroll_length']} steps)")
 
     def test_compose(self):
         self.check(deploy_test.load_compose())

@@ -102,12 +102,13 @@ class LauncherDefaultsTest(unittest.TestCase):
     def test_defaults_are_the_binaries_and_nothing_is_restated(self):
         args = plan.parse_args([])  # coop_nav.
         self.assertEqual((args.sync, args.batch_steps, args.unroll_length, args.separate_optimizers, args.lr),
-                         (True, 2048, 32, True, 1e-3))
+                         (True, 2048, 64, True, 1e-3))
+        self.assertEqual(args.envs_per_actor, 16)
         # Nothing given, nothing passed: each binary resolves its own defaults.
         for program in binaries.PROGRAMS:
             self.assertEqual(options.program_flags(args, program), [], program)
         pp = plan.parse_args(["--scenario", "predator_prey"])
-        self.assertEqual((pp.batch_steps, pp.unroll_length, pp.separate_optimizers, pp.lr), (1024, 16, False, 5e-4))
+        self.assertEqual((pp.batch_steps, pp.unroll_length, pp.separate_optimizers, pp.lr), (1024, 32, False, 5e-4))
         self.assertEqual(options.program_flags(pp, "actor"), ["--scenario=predator_prey"])
         # A flag given wins over the scenario's default, and is passed on.
         given = plan.parse_args(["--scenario", "predator_prey", "--separate-optimizers", "true"])

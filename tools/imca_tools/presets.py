@@ -132,7 +132,8 @@ def presets():
     }
 
 
-# Presets write to results/<preset>-<edition>: the learner's defaults changed
-# with edition v2 (docs/benchmarks.md, "Sample efficiency against the
-# reference MAPPO"), and results/<preset> holds the v1 runs (docs/results.md).
-PRESET_EDITION = "v3"
+# Presets write to results/<preset>-<edition>, a new edition whenever the
+# defaults a cell trains with change (docs/experiments.md, "Presets"): v4
+# collects with 2 actors of 16 envs, each env's share of an iteration one
+# unroll; results/<preset>-v3 and older hold the runs before (docs/results.md).
+PRESET_EDITION = "v4"
