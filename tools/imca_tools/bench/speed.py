@@ -6,9 +6,12 @@ import statistics
 from .. import runs
 from .common import run_binary, steady_rate, train
 
-# ./imca train's defaults before the learner ablation, and before the concurrent critic.
+# ./imca train's defaults before the learner ablation, before the concurrent
+# critic and before edition v4's collection (32 envs per actor; its 16 eval
+# envs per actor are now 8, which ./imca train does not set).
 V1_FLAGS = [word for key, value in runs.V1_DEFAULTS.items()
-            for word in (f"--{key.replace('_', '-')}", str(value).lower())] + ["--concurrent-critic", "false"]
+            for word in (f"--{key.replace('_', '-')}", str(value).lower())] + ["--concurrent-critic", "false",
+                                                                               "--envs-per-actor", "32"]
 
 
 def run(args, base):
